@@ -1,0 +1,26 @@
+"""sswjax: Segment-Side-Window stereo matching in JAX.
+
+Al-Asbahi, Kadmin, Hamzah et al., "Enhanced Local Disparity Map Algorithm Segment-Side Window-based
+Cost Aggregation and Refinement", 2025: multi-cost matching (TAD + Sobel gradient + census), SLIC
+superpixels and side-window filtering for aggregation, winner-takes-all, left-right check, median
+filling and side-window refinement.
+
+>>> import sswjax
+>>> disparity = sswjax.match(left, right, ndisp=64)          # doctest: +SKIP
+"""
+
+from sswjax.params import DynamicParams, Params, StaticParams, load_params, save_params
+from sswjax.pipeline import aggregated_cost, match, select_and_refine, ssw_disparity
+
+__all__ = [
+    "DynamicParams",
+    "Params",
+    "StaticParams",
+    "aggregated_cost",
+    "load_params",
+    "match",
+    "save_params",
+    "select_and_refine",
+    "ssw_disparity",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,49 @@
+"""Entry checks shared by every public function.
+
+Each check raises ``ValueError`` (or ``TypeError`` for dtypes) with a one-line message naming
+the argument, so that the CLI can show it to the user as is. Checks work on anything with
+``.ndim``, ``.shape`` and ``.dtype`` (NumPy arrays, JAX arrays and tracers alike) and only
+look at static information, so they are free inside ``jax.jit``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def check_rank(name: str, x, ranks: int | Sequence[int]) -> None:
+    """Raise ``ValueError`` unless ``x.ndim`` is one of ``ranks``."""
+    allowed = (ranks,) if isinstance(ranks, int) else tuple(ranks)
+    if x.ndim not in allowed:
+        want = " or ".join(str(r) for r in allowed)
+        raise ValueError(f"{name} must have rank {want}, got shape {tuple(x.shape)}")
+
+
+def check_floating(name: str, x) -> None:
+    """Raise ``TypeError`` unless ``x`` has a floating dtype."""
+    if not np.issubdtype(np.dtype(x.dtype), np.floating):
+        raise TypeError(f"{name} must have a floating dtype, got {x.dtype}")
+
+
+def check_integer(name: str, x) -> None:
+    """Raise ``TypeError`` unless ``x`` has an integer dtype."""
+    if not np.issubdtype(np.dtype(x.dtype), np.integer):
+        raise TypeError(f"{name} must have an integer dtype, got {x.dtype}")
+
+
+def check_same_shape(name_a: str, a, name_b: str, b) -> None:
+    """Raise ``ValueError`` unless ``a`` and ``b`` have the same shape."""
+    if tuple(a.shape) != tuple(b.shape):
+        raise ValueError(
+            f"{name_a} and {name_b} must have the same shape, got {tuple(a.shape)} and {tuple(b.shape)}"
+        )
+
+
+def check_positive_int(name: str, value, *, minimum: int = 1) -> None:
+    """Raise ``ValueError`` unless ``value`` is a Python/NumPy integer >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")

@@ -1,0 +1,221 @@
+"""Matching costs of the SSW method (paper Section III-A, Eq. 1-5).
+
+Array conventions (whole module):
+
+- images: float32 ``(H, W, C)`` with C in {1, 3}, intensities in [0, 1]; gray images used by
+  the gradient and census terms are float32 ``(H, W)``;
+- census codes: uint32 ``(n_words, H, W)``, bit ``k`` of the code set when the k-th neighbour
+  (row-major over the window, centre skipped) is darker than the centre;
+- cost volumes: float32 ``(D, H, W)``, disparity first; slice ``d`` compares left pixel
+  ``(y, x)`` with right pixel ``(y, x - d)``; lower is better.
+
+Each term is normalised to [0, 1] (TAD / tau_c, GM / tau_g, Hamming / number of bits), so the
+weights alpha, beta, gamma of Eq. (5) are comparable.
+
+Border rule: where ``x - d < 0`` the right pixel lies outside the image; every term is then set
+to its maximum 1, so the combined cost is ``alpha + beta + gamma`` there (no match is possible,
+and the value never beats a real match).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+
+from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
+from sswjax.color import rgb_to_gray
+
+_WORD_BITS = 32
+
+
+def _check_image(name: str, image) -> None:
+    check_rank(name, image, 3)
+    check_floating(name, image)
+    if image.shape[-1] not in (1, 3):
+        raise ValueError(f"{name} must have 1 or 3 channels, got shape {tuple(image.shape)}")
+
+
+def to_gray(image: jax.Array) -> jax.Array:
+    """Gray image ``(H, W)`` of an ``(H, W, C)`` image, C in {1, 3} (BT.601 luma for colour)."""
+    _check_image("image", image)
+    return image[..., 0] if image.shape[-1] == 1 else rgb_to_gray(image)
+
+
+def sobel_gradient_magnitude(gray: jax.Array) -> jax.Array:
+    """Sobel gradient magnitude of a gray image (Eq. 3's G), edge-replicated borders.
+
+    The Sobel kernels are scaled by 1/8 so that a unit ramp has gradient 1 per pixel.
+
+    Parameters
+    ----------
+    gray : float32 (H, W)
+
+    Returns
+    -------
+    float32 (H, W), >= 0
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> ramp = jnp.tile(jnp.arange(5.0), (4, 1))
+    >>> float(sobel_gradient_magnitude(ramp)[2, 2])
+    1.0
+    """
+    check_rank("gray", gray, 2)
+    check_floating("gray", gray)
+    h, w = gray.shape
+    p = jnp.pad(gray, 1, mode="edge")
+
+    def at(dy: int, dx: int) -> jax.Array:
+        return p[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+
+    gx = (at(-1, 1) + 2 * at(0, 1) + at(1, 1) - at(-1, -1) - 2 * at(0, -1) - at(1, -1)) / 8
+    gy = (at(1, -1) + 2 * at(1, 0) + at(1, 1) - at(-1, -1) - 2 * at(-1, 0) - at(-1, 1)) / 8
+    return jnp.sqrt(gx * gx + gy * gy)
+
+
+def census_transform(gray: jax.Array, *, height: int = 7, width: int = 9) -> jax.Array:
+    """Census transform (Zabih & Woodfill, ECCV 1994) packed into uint32 words (Eq. 4's xi).
+
+    Bit ``k`` is 1 when the k-th neighbour of the ``height x width`` window (row-major, centre
+    skipped) is strictly darker than the centre. Borders are edge-replicated.
+
+    Parameters
+    ----------
+    gray : float32 (H, W)
+    height, width : int, odd
+        Window size.
+
+    Returns
+    -------
+    uint32 (ceil((height * width - 1) / 32), H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> census_transform(jnp.zeros((4, 6)), height=3, width=3).shape
+    (1, 4, 6)
+    """
+    check_rank("gray", gray, 2)
+    check_floating("gray", gray)
+    for name, size in (("height", height), ("width", width)):
+        check_positive_int(name, size)
+        if size % 2 == 0:
+            raise ValueError(f"census {name} must be odd, got {size}")
+    h, w = gray.shape
+    ry, rx = height // 2, width // 2
+    padded = jnp.pad(gray, ((ry, ry), (rx, rx)), mode="edge")
+    offsets = [(dy, dx) for dy in range(height) for dx in range(width) if (dy, dx) != (ry, rx)]
+    words = []
+    for start in range(0, len(offsets), _WORD_BITS):
+        word = jnp.zeros((h, w), jnp.uint32)
+        for bit, (dy, dx) in enumerate(offsets[start : start + _WORD_BITS]):
+            darker = padded[dy : dy + h, dx : dx + w] < gray
+            word = word | (darker.astype(jnp.uint32) << bit)
+        words.append(word)
+    return jnp.stack(words)
+
+
+def hamming_distance(codes_a: jax.Array, codes_b: jax.Array) -> jax.Array:
+    """Number of differing bits between census codes (Eq. 4's H), summed over words.
+
+    Parameters
+    ----------
+    codes_a, codes_b : uint32 (n_words, ...)
+
+    Returns
+    -------
+    int32 (...)
+    """
+    check_same_shape("codes_a", codes_a, "codes_b", codes_b)
+    if codes_a.dtype != jnp.uint32 or codes_b.dtype != jnp.uint32:
+        raise TypeError(f"census codes must be uint32, got {codes_a.dtype} and {codes_b.dtype}")
+    return lax.population_count(codes_a ^ codes_b).astype(jnp.int32).sum(axis=0)
+
+
+def _shift_right(x: jax.Array, d: jax.Array, pad: int) -> jax.Array:
+    """``out[..., x] = in[..., x - d]`` for traced ``0 <= d <= pad`` (columns x < d: edge value)."""
+    widths = [(0, 0)] * (x.ndim - 1) + [(pad, 0)]
+    padded = jnp.pad(x, widths, mode="edge")
+    return lax.dynamic_slice_in_dim(padded, pad - d, x.shape[-1], axis=x.ndim - 1)
+
+
+def cost_volume(
+    left: jax.Array,
+    right: jax.Array,
+    *,
+    ndisp: int,
+    tad_weight,
+    gradient_weight,
+    census_weight,
+    tad_truncation,
+    gradient_truncation,
+    census_height: int = 7,
+    census_width: int = 9,
+) -> jax.Array:
+    """Combined matching cost ``C(p, d)`` of Eq. (5) for d = 0 .. ndisp-1.
+
+    ``C = alpha * min(TAD, tau_c) / tau_c + beta * min(GM, tau_g) / tau_g + gamma * CT / n_bits``
+    where TAD (Eq. 2) is the channel mean of ``|I_L(p) - I_R(p - d)|``, GM (Eq. 3) the absolute
+    difference of Sobel gradient magnitudes, truncated too (an untruncated GM lets outliers
+    dominate), and CT (Eq. 4) the Hamming distance of census codes. Built with ``jax.vmap`` over
+    disparities.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    ndisp : int
+        Number of disparities, 1 <= ndisp <= W.
+    tad_weight, gradient_weight, census_weight : float or scalar array
+        alpha, beta, gamma.
+    tad_truncation, gradient_truncation : float or scalar array, > 0
+        tau_c and tau_g, in intensity units.
+    census_height, census_width : int, odd
+        Census window.
+
+    Returns
+    -------
+    float32 (ndisp, H, W), values in [0, alpha + beta + gamma]
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> img = jnp.linspace(0, 1, 4 * 16 * 3).reshape(4, 16, 3)
+    >>> c = cost_volume(img, img, ndisp=3, tad_weight=1., gradient_weight=1., census_weight=1.,
+    ...                 tad_truncation=0.1, gradient_truncation=0.1)
+    >>> c.shape, float(c[0].max())
+    ((3, 4, 16), 0.0)
+    """
+    _check_image("left", left)
+    _check_image("right", right)
+    check_same_shape("left", left, "right", right)
+    check_positive_int("ndisp", ndisp)
+    height, width, _ = left.shape
+    if ndisp > width:
+        raise ValueError(f"ndisp must be <= image width {width}, got {ndisp}")
+
+    gray_l, gray_r = to_gray(left), to_gray(right)
+    grad_l, grad_r = sobel_gradient_magnitude(gray_l), sobel_gradient_magnitude(gray_r)
+    census_l = census_transform(gray_l, height=census_height, width=census_width)
+    census_r = census_transform(gray_r, height=census_height, width=census_width)
+    n_bits = census_height * census_width - 1
+    right_channels_first = jnp.moveaxis(right, -1, 0)
+    left_channels_first = jnp.moveaxis(left, -1, 0)
+    columns = jnp.arange(width)
+    pad = ndisp - 1
+
+    def cost_slice(d):
+        shifted = _shift_right(right_channels_first, d, pad)
+        tad = jnp.abs(left_channels_first - shifted).mean(axis=0)
+        gm = jnp.abs(grad_l - _shift_right(grad_r, d, pad))
+        ct = hamming_distance(census_l, _shift_right(census_r, d, pad)).astype(jnp.float32)
+        cost = (
+            tad_weight * jnp.minimum(tad, tad_truncation) / tad_truncation
+            + gradient_weight * jnp.minimum(gm, gradient_truncation) / gradient_truncation
+            + census_weight * ct / n_bits
+        )
+        outside = columns < d
+        return jnp.where(outside, tad_weight + gradient_weight + census_weight, cost)
+
+    return jax.vmap(cost_slice)(jnp.arange(ndisp)).astype(jnp.float32)

@@ -1,0 +1,417 @@
+"""Reading and writing images and disparity maps.
+
+Array conventions
+-----------------
+* Images are ``(H, W)`` (gray) or ``(H, W, 3)`` (RGB) NumPy arrays, row 0 at the top.
+  As read from disk they keep their file dtype (``uint8``, ``uint16`` or floating);
+  :func:`to_float_image` turns them into ``float32`` in ``[0, 1]``.
+* Disparity maps are ``float32`` ``(H, W)`` arrays in pixels, row 0 at the top;
+  ``inf`` marks unknown/invalid pixels. PFM files store rows bottom-to-top; the reader and
+  writer flip them so that callers never see that order.
+* Display images produced by :func:`disparity_to_rgb` are ``uint8`` ``(H, W, 3)``.
+
+Every problem with a user-supplied file (missing, unreadable, corrupt, truncated, not
+writable) raises :class:`InputError`, a ``ValueError`` with a one-line message naming the file.
+All writers are atomic: the output either keeps its old content or gets the complete new one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+
+from sswjax._checks import check_floating, check_rank
+
+__all__ = [
+    "InputError",
+    "atomic_output",
+    "disparity_to_rgb",
+    "read_image",
+    "read_pfm",
+    "to_float_image",
+    "write_disparity_png",
+    "write_pfm",
+]
+
+
+class InputError(ValueError):
+    """A user file is missing, unreadable, corrupt or truncated (or cannot be written)."""
+
+
+# ----------------------------------------------------------------------------- atomic output
+
+
+def _read_umask() -> int:
+    umask = os.umask(0)  # the only portable way to read it; done once, at import
+    os.umask(umask)
+    return umask
+
+
+# mkstemp creates files as 0o600; outputs get what a plain open(path, "w") would give.
+_FILE_MODE = 0o666 & ~_read_umask()
+
+
+def _reason(exc: BaseException) -> str:
+    """First line of an exception's message, for one-line error reports."""
+    text = getattr(exc, "strerror", None) or str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path next to ``path`` and move it onto ``path`` on success.
+
+    The temporary file (``.<name>.<random>.tmp`` in the same directory) is removed if the
+    body raises, so an existing ``path`` is left untouched and no debris remains.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Final output file.
+
+    Yields
+    ------
+    pathlib.Path
+        Temporary file to write; it already exists (empty) and may be overwritten.
+
+    Raises
+    ------
+    InputError
+        If the temporary file cannot be created or moved (e.g. missing directory).
+
+    Examples
+    --------
+    >>> with atomic_output("out.txt") as tmp:  # doctest: +SKIP
+    ...     tmp.write_text("hello")
+    """
+    path = Path(path)
+    try:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {_reason(exc)}") from exc
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.chmod(tmp, _FILE_MODE)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot write {path}: {_reason(exc)}") from exc
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+# ----------------------------------------------------------------------------- images
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file (PNG, JPEG, ...) as gray or RGB.
+
+    Alpha channels are dropped (RGBA -> RGB, gray+alpha -> gray); a single channel
+    ``(H, W, 1)`` becomes ``(H, W)``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Image file.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` or ``(H, W, 3)`` array in the file's dtype (``uint8``, ``uint16``, ...).
+
+    Raises
+    ------
+    InputError
+        If the file is missing, cannot be decoded, or is not a single gray/RGB(A) image.
+
+    Examples
+    --------
+    >>> left = read_image("Motorcycle/im0.png")  # doctest: +SKIP
+    >>> left.shape, left.dtype  # doctest: +SKIP
+    ((497, 741, 3), dtype('uint8'))
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"image not found: {path}")
+    try:
+        image = np.asarray(iio.imread(path))
+    except Exception as exc:  # imageio/Pillow raise many types for corrupt files
+        raise InputError(f"cannot read image {path}: {_reason(exc)}") from exc
+    if image.ndim == 3 and image.shape[2] in (1, 2):
+        image = image[:, :, 0]
+    elif image.ndim == 3 and image.shape[2] == 4:
+        image = image[:, :, :3]
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
+        raise InputError(f"image {path} must be gray or RGB(A), got array shape {image.shape}")
+    return np.ascontiguousarray(image)
+
+
+def to_float_image(image: np.ndarray) -> np.ndarray:
+    """Convert an image to ``float32``, scaling integer images to ``[0, 1]``.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``(H, W)`` or ``(H, W, 3)``; ``uint8`` (divided by 255), ``uint16`` (divided by
+        65535) or floating (kept as is, must be finite).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32`` array of the same shape (a new array).
+
+    Raises
+    ------
+    ValueError
+        On a bad shape or non-finite float values.
+    TypeError
+        On any other dtype (including ``bool``).
+
+    Examples
+    --------
+    >>> to_float_image(np.array([[0, 255]], dtype=np.uint8))
+    array([[0., 1.]], dtype=float32)
+    """
+    image = np.asarray(image)
+    check_rank("image", image, (2, 3))
+    if image.ndim == 3 and image.shape[2] != 3:
+        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {image.shape}")
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / np.float32(255)
+    if image.dtype == np.uint16:
+        return image.astype(np.float32) / np.float32(65535)
+    if not np.issubdtype(image.dtype, np.floating):
+        raise TypeError(f"image must be uint8, uint16 or floating, got {image.dtype}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = image.astype(np.float32)
+    if not np.isfinite(out).all():
+        raise ValueError("image has non-finite values (or values too large for float32)")
+    return out
+
+
+# ----------------------------------------------------------------------------- PFM
+
+
+def _read_bytes(path: Path, what: str) -> bytes:
+    if not path.exists():
+        raise InputError(f"{what} not found: {path}")
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {_reason(exc)}") from exc
+
+
+def _pfm_header(data: bytes, path: Path) -> tuple[list[bytes], int]:
+    """Split the 4 header tokens off ``data``; return them and the offset of the pixels."""
+    tokens: list[bytes] = []
+    pos, n = 0, len(data)
+    while len(tokens) < 4:
+        while pos < n and data[pos : pos + 1].isspace():
+            pos += 1
+        start = pos
+        while pos < n and pos - start <= 64 and not data[pos : pos + 1].isspace():
+            pos += 1
+        if pos == start or pos - start > 64 or pos >= n:
+            raise InputError(f"PFM file {path} has a truncated or malformed header")
+        tokens.append(data[start:pos])
+    # Exactly one whitespace byte (or CR LF) separates the header from the pixels.
+    pos += 2 if data[pos : pos + 2] == b"\r\n" else 1
+    return tokens, pos
+
+
+def read_pfm(path: str | os.PathLike) -> np.ndarray:
+    """Read a PFM disparity file (Middlebury conventions).
+
+    Header ``Pf`` (gray) or ``PF`` (colour), then width and height, then a scale whose sign
+    gives the byte order (negative: little endian); tokens may be separated by any
+    whitespace. Rows are stored bottom-to-top and flipped here. ``inf`` values are kept.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        PFM file.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``float32`` ``(H, W)`` for ``Pf`` files, ``(H, W, 3)`` for ``PF`` files.
+
+    Raises
+    ------
+    InputError
+        If the file is missing, unreadable, truncated or has a bad header.
+
+    Examples
+    --------
+    >>> gt = read_pfm("Motorcycle/disp0GT.pfm")  # doctest: +SKIP
+    >>> gt.shape, gt.dtype  # doctest: +SKIP
+    ((497, 741), dtype('float32'))
+    """
+    path = Path(path)
+    data = _read_bytes(path, "PFM file")
+    tokens, offset = _pfm_header(data, path)
+    magic, width, height, scale = tokens
+    if magic not in (b"Pf", b"PF"):
+        raise InputError(f"PFM file {path} has bad magic {magic[:8]!r}, expected b'Pf' or b'PF'")
+    if not (width.isdigit() and height.isdigit() and int(width) > 0 and int(height) > 0):
+        raise InputError(f"PFM file {path} has bad size {width[:16]!r} x {height[:16]!r}")
+    try:
+        scale_value = float(scale.decode("ascii"))
+    except (UnicodeDecodeError, ValueError):
+        scale_value = float("nan")
+    if not np.isfinite(scale_value) or scale_value == 0:
+        raise InputError(f"PFM file {path} has bad scale {scale[:16]!r}, expected a nonzero number")
+    channels = 3 if magic == b"PF" else 1
+    shape = (int(height), int(width)) + ((3,) if channels == 3 else ())
+    nbytes = 4 * channels * int(height) * int(width)
+    if len(data) - offset < nbytes:
+        raise InputError(
+            f"PFM file {path} is truncated: {max(len(data) - offset, 0)} of {nbytes} data bytes"
+        )
+    dtype = "<f4" if scale_value < 0 else ">f4"
+    pixels = np.frombuffer(data, dtype=dtype, count=nbytes // 4, offset=offset).reshape(shape)
+    return np.ascontiguousarray(pixels[::-1], dtype=np.float32)
+
+
+def write_pfm(path: str | os.PathLike, array: np.ndarray) -> None:
+    """Atomically write a PFM file (little endian, rows bottom-to-top).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; replaced only once the new content is complete.
+    array : numpy.ndarray
+        Floating ``(H, W)`` (written as ``Pf``) or ``(H, W, 3)`` (written as ``PF``); stored
+        as ``float32``. ``inf`` is allowed.
+
+    Raises
+    ------
+    ValueError, TypeError
+        On a bad shape or a non-floating dtype.
+    InputError
+        If the file cannot be written.
+
+    Examples
+    --------
+    >>> write_pfm("disp0.pfm", np.zeros((4, 6), np.float32))  # doctest: +SKIP
+    """
+    array = np.asarray(array)
+    check_rank("array", array, (2, 3))
+    check_floating("array", array)
+    if array.ndim == 3 and array.shape[2] != 3:
+        raise ValueError(f"array must be (H, W) or (H, W, 3), got shape {array.shape}")
+    if array.shape[0] == 0 or array.shape[1] == 0:
+        raise ValueError(f"array must not be empty, got shape {array.shape}")
+    height, width = array.shape[:2]
+    magic = "PF" if array.ndim == 3 else "Pf"
+    with np.errstate(over="ignore"):
+        body = np.ascontiguousarray(array[::-1], dtype="<f4").tobytes()
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        f.write(f"{magic}\n{width} {height}\n-1.0\n".encode("ascii"))
+        f.write(body)
+
+
+# ----------------------------------------------------------------------------- display
+
+# Anchor colours (RGB in [0, 1]) at evenly spaced positions: dark blue -> blue -> cyan ->
+# yellow -> red. Lightness rises monotonically up to yellow, so near/far reads at a glance.
+_COLOUR_ANCHORS = np.array(
+    [
+        [0.08, 0.04, 0.40],
+        [0.10, 0.35, 0.85],
+        [0.15, 0.80, 0.85],
+        [0.98, 0.90, 0.20],
+        [0.85, 0.12, 0.08],
+    ]
+)
+
+
+def disparity_to_rgb(
+    disparity: np.ndarray, *, vmin: float | None = None, vmax: float | None = None
+) -> np.ndarray:
+    """Colour a disparity map for display.
+
+    Values are normalised to ``[0, 1]`` by ``vmin``/``vmax`` (clipped outside) and mapped
+    through a dark-blue/cyan/yellow/red colour map; non-finite pixels are black.
+
+    Parameters
+    ----------
+    disparity : numpy.ndarray
+        Floating ``(H, W)`` disparity map.
+    vmin, vmax : float, optional
+        Range mapped to the ends of the colour map; defaults to the finite min/max.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``uint8`` ``(H, W, 3)`` RGB image.
+
+    Raises
+    ------
+    ValueError, TypeError
+        On a bad shape or dtype, or non-finite / inverted ``vmin``/``vmax``.
+
+    Examples
+    --------
+    >>> disparity_to_rgb(np.array([[0.0, 1.0, np.inf]], np.float32))[0, 2]
+    array([0, 0, 0], dtype=uint8)
+    """
+    disparity = np.asarray(disparity)
+    check_rank("disparity", disparity, 2)
+    check_floating("disparity", disparity)
+    finite = np.isfinite(disparity)
+    values = disparity[finite].astype(np.float64)
+    lo = float(vmin) if vmin is not None else (float(values.min()) if values.size else 0.0)
+    hi = float(vmax) if vmax is not None else (float(values.max()) if values.size else lo)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        raise ValueError(f"vmin and vmax must be finite, got {lo} and {hi}")
+    if vmin is not None and vmax is not None and lo >= hi:
+        raise ValueError(f"vmin must be < vmax, got {lo} and {hi}")
+    t = np.zeros(disparity.shape)
+    if hi > lo:
+        t[finite] = np.clip((values - lo) / (hi - lo), 0.0, 1.0)
+    positions = np.linspace(0.0, 1.0, len(_COLOUR_ANCHORS))
+    rgb = np.stack([np.interp(t, positions, _COLOUR_ANCHORS[:, c]) for c in range(3)], axis=-1)
+    rgb[~finite] = 0.0
+    return np.round(rgb * 255).astype(np.uint8)
+
+
+def write_disparity_png(
+    path: str | os.PathLike,
+    disparity: np.ndarray,
+    *,
+    vmin: float | None = None,
+    vmax: float | None = None,
+) -> None:
+    """Atomically write a colour-mapped disparity map as a PNG file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output PNG file; replaced only once the new content is complete.
+    disparity : numpy.ndarray
+        Floating ``(H, W)`` disparity map.
+    vmin, vmax : float, optional
+        Colour range, see :func:`disparity_to_rgb`.
+
+    Raises
+    ------
+    InputError
+        If the file cannot be written.
+
+    Examples
+    --------
+    >>> write_disparity_png("disp0.png", np.zeros((4, 6), np.float32))  # doctest: +SKIP
+    """
+    rgb = disparity_to_rgb(disparity, vmin=vmin, vmax=vmax)
+    with atomic_output(path) as tmp:
+        iio.imwrite(tmp, rgb, extension=".png")

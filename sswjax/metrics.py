@@ -1,0 +1,177 @@
+"""Disparity error metrics following the MiddEval3 ``evaldisp`` rules.
+
+Array conventions
+-----------------
+* ``disparity``: floating ``(H, W)`` prediction in pixels; ``inf``/``nan`` = no prediction.
+* ``ground_truth``: floating ``(H, W)`` in pixels; non-finite (``inf``) = unknown.
+* ``mask``: ``uint8`` ``(H, W)``; 255 = non-occluded, 128 = occluded, 0 = unknown.
+
+Rules
+-----
+* Pixels with non-finite ground truth are skipped entirely. Region ``"all"`` is every other
+  pixel; region ``"nonocc"`` further requires ``mask == 255``.
+* A non-finite prediction is *invalid*: it stays in the denominator, counts as bad for every
+  threshold, is reported as ``invalid`` and is left out of ``avgerr`` and ``rms``.
+* Valid predictions are clipped to ``[0, ndisp]`` before comparison.
+* ``bad<t>`` = percentage with ``|d - gt| > t`` (strict) or invalid; ``invalid`` =
+  percentage invalid; ``avgerr``/``rms`` = mean / root-mean-square of ``|d - gt|`` over valid
+  pixels; ``a90`` = smallest error ``e`` such that at least 90 % of the evaluated pixels have
+  error ``<= e``, with invalid pixels counted as infinite error (so ``a90`` is ``inf`` when
+  more than 10 % are invalid).
+* Percentages are in ``[0, 100]``; errors in pixels. A region with no pixels gives ``nan``
+  everywhere, as do ``avgerr``/``rms`` when no prediction is valid.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from sswjax._checks import (
+    check_floating,
+    check_integer,
+    check_positive_int,
+    check_rank,
+    check_same_shape,
+)
+
+__all__ = ["MIDDEVAL3_TRAINING_WEIGHTS", "evaluate_disparity", "weighted_average"]
+
+#: Weights of the MiddEval3 training scenes in the official averages.
+MIDDEVAL3_TRAINING_WEIGHTS: dict[str, float] = {
+    **dict.fromkeys(
+        [
+            "Adirondack", "ArtL", "Jadeplant", "Motorcycle", "MotorcycleE",
+            "Piano", "Pipes", "PlaytableP", "Recycle", "Teddy",
+        ],
+        0.08,
+    ),
+    **dict.fromkeys(["PianoL", "Playroom", "Playtable", "Shelves", "Vintage"], 0.04),
+}  # fmt: skip
+
+
+def _region_metrics(error: np.ndarray, thresholds: Sequence[float]) -> dict[str, float]:
+    """Metrics of a 1-D array of absolute errors where ``inf`` marks invalid predictions."""
+    keys = [f"bad{t}" for t in thresholds] + ["invalid", "avgerr", "rms", "a90"]
+    n = error.size
+    if n == 0:
+        return dict.fromkeys(keys, float("nan"))
+    valid = error[np.isfinite(error)]
+    out = {f"bad{t}": 100.0 * int(np.count_nonzero(error > t)) / n for t in thresholds}
+    out["invalid"] = 100.0 * (n - valid.size) / n
+    out["avgerr"] = float(valid.mean()) if valid.size else float("nan")
+    out["rms"] = float(np.sqrt(np.mean(valid**2))) if valid.size else float("nan")
+    out["a90"] = float(np.sort(error)[(9 * n + 9) // 10 - 1])  # the ceil(0.9 n)-th smallest
+    return out
+
+
+def evaluate_disparity(
+    disparity: np.ndarray,
+    ground_truth: np.ndarray,
+    *,
+    mask: np.ndarray | None = None,
+    ndisp: int,
+    thresholds: Sequence[float] = (0.5, 1.0, 2.0, 4.0),
+) -> dict[str, dict[str, float]]:
+    """Evaluate a disparity map against ground truth with the MiddEval3 rules.
+
+    Parameters
+    ----------
+    disparity : numpy.ndarray
+        Floating ``(H, W)`` prediction; ``inf``/``nan`` = invalid.
+    ground_truth : numpy.ndarray
+        Floating ``(H, W)``; non-finite = unknown (skipped).
+    mask : numpy.ndarray, optional
+        Integer ``(H, W)`` occlusion mask; 255 = non-occluded. Enables region ``"nonocc"``.
+    ndisp : int
+        Disparity range; valid predictions are clipped to ``[0, ndisp]``.
+    thresholds : sequence of float
+        Error thresholds in pixels, each reported as ``f"bad{float(t)}"``.
+
+    Returns
+    -------
+    dict
+        ``{"all": metrics}`` plus ``"nonocc"`` if ``mask`` is given, where ``metrics`` maps
+        ``"bad0.5"``, ``"bad1.0"``, ... and ``"invalid"`` to percentages and ``"avgerr"``,
+        ``"rms"``, ``"a90"`` to pixels (see the module docstring).
+
+    Raises
+    ------
+    ValueError, TypeError
+        On bad shapes, dtypes, ``ndisp`` or thresholds.
+
+    Examples
+    --------
+    >>> gt = np.array([[1.0, 2.0, np.inf]], np.float32)
+    >>> d = np.array([[1.0, 5.0, 3.0]], np.float32)
+    >>> evaluate_disparity(d, gt, ndisp=16)["all"]["bad2.0"]
+    50.0
+    """
+    disparity = np.asarray(disparity)
+    ground_truth = np.asarray(ground_truth)
+    check_rank("disparity", disparity, 2)
+    check_floating("disparity", disparity)
+    check_rank("ground_truth", ground_truth, 2)
+    check_floating("ground_truth", ground_truth)
+    check_same_shape("disparity", disparity, "ground_truth", ground_truth)
+    if mask is not None:
+        mask = np.asarray(mask)
+        check_rank("mask", mask, 2)
+        check_integer("mask", mask)
+        check_same_shape("mask", mask, "ground_truth", ground_truth)
+    check_positive_int("ndisp", ndisp)
+    thresholds = tuple(float(t) for t in thresholds)
+    if not thresholds or not all(math.isfinite(t) and t >= 0 for t in thresholds):
+        raise ValueError(f"thresholds must be finite numbers >= 0 (at least one), got {thresholds}")
+
+    d = disparity.astype(np.float64)
+    gt = ground_truth.astype(np.float64)
+    known = np.isfinite(gt)
+    valid = np.isfinite(d)
+    error = np.full(d.shape, np.inf)
+    error[valid] = np.abs(np.clip(d[valid], 0.0, ndisp) - gt[valid])
+
+    result = {"all": _region_metrics(error[known], thresholds)}
+    if mask is not None:
+        result["nonocc"] = _region_metrics(error[known & (mask == 255)], thresholds)
+    return result
+
+
+def weighted_average(
+    values: Mapping[str, float], *, weights: Mapping[str, float] = MIDDEVAL3_TRAINING_WEIGHTS
+) -> float:
+    """Weighted average of per-scene values over the scenes present.
+
+    Parameters
+    ----------
+    values : Mapping[str, float]
+        Scene name -> value (e.g. bad2.0 percentage).
+    weights : Mapping[str, float]
+        Scene name -> weight; defaults to the MiddEval3 training weights.
+
+    Returns
+    -------
+    float
+        ``sum(w * v) / sum(w)`` over the scenes in ``values``.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is empty or names a scene without a weight.
+
+    Examples
+    --------
+    >>> round(weighted_average({"Teddy": 10.0, "Vintage": 40.0}), 6)
+    20.0
+    """
+    if not values:
+        raise ValueError("values must name at least one scene")
+    unknown = sorted(set(values) - set(weights))
+    if unknown:
+        raise ValueError(f"values has scenes without a weight: {', '.join(unknown)}")
+    total = sum(weights[s] for s in values)
+    if total <= 0:
+        raise ValueError(f"weights of the scenes in values must sum to > 0, got {total}")
+    return sum(weights[s] * float(v) for s, v in values.items()) / total

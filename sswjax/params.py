@@ -1,0 +1,239 @@
+"""The SSW parameter pytree: static (shape-changing) fields apart from dynamic (continuous) ones.
+
+``Params`` is one immutable value. It is a JAX pytree whose only leaves are the continuous fields
+of :class:`DynamicParams` (weights, truncations, blending, tolerances): these are traced by
+``jax.jit`` and differentiated by the optax search. The fields of :class:`StaticParams` (radii,
+census window, superpixel count, iterations, switches) change array shapes or the graph, so they
+live in the pytree's metadata: changing one recompiles, and they are never differentiated.
+
+Units: image intensities are in [0, 1], so truncations are fractions of the full intensity range;
+disparities are in pixels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from collections.abc import Mapping
+from typing import Any, NamedTuple
+
+import jax
+
+WINDOW_SELECTIONS = ("guide", "slice")
+
+
+class StaticParams(NamedTuple):
+    """Fields that fix shapes or the structure of the graph (hashable; recompiles on change).
+
+    Attributes
+    ----------
+    census_height, census_width : int
+        Census window, odd sizes (Eq. 4). Default 7 x 9.
+    n_segments : int
+        Requested SLIC superpixel count (Eq. 6); 0 disables the segment term.
+    slic_iterations : int
+        Fixed number of SLIC assignment/update rounds.
+    aggregation_radius : int
+        Side-window radius r of the cost aggregation (Eq. 7).
+    aggregation_iterations : int
+        Number of side-window filtering passes over the cost volume.
+    window_selection : str
+        ``"guide"``: each pixel's side window is chosen on the left image and shared by all
+        disparities; ``"slice"``: chosen independently on every cost slice (Yin et al. 2019).
+    subpixel : bool
+        Parabola fit around the winner-takes-all minimum (Eq. 8 refined).
+    lr_check : bool
+        Left-right consistency check and filling of the pixels it rejects.
+    fill_radius : int
+        Radius of the median over filled pixels (Eq. 9).
+    refine_radius : int
+        Radius of the side-window median applied to the disparity map (0 disables it).
+    refine_iterations : int
+        Passes of that side-window median.
+    """
+
+    census_height: int = 7
+    census_width: int = 9
+    n_segments: int = 2000
+    slic_iterations: int = 10
+    aggregation_radius: int = 4
+    aggregation_iterations: int = 3
+    window_selection: str = "guide"
+    subpixel: bool = True
+    lr_check: bool = True
+    fill_radius: int = 2
+    refine_radius: int = 2
+    refine_iterations: int = 2
+
+
+class DynamicParams(NamedTuple):
+    """Continuous fields: pytree leaves, traced by ``jit`` and searched by optax.
+
+    Attributes
+    ----------
+    tad_weight, gradient_weight, census_weight : float
+        alpha, beta, gamma of Eq. (5), applied to the normalised terms (each in [0, 1]).
+    tad_truncation : float
+        tau of Eq. (2) on the channel-mean absolute difference, intensities in [0, 1].
+    gradient_truncation : float
+        Truncation of the Sobel gradient-magnitude difference (Eq. 3).
+    segment_weight : float
+        lambda of the segment term: the filter sees ``C + lambda * S`` (Eq. 7 as we read it).
+    slic_compactness : float
+        m of Eq. (6).
+    lr_tolerance : float
+        Largest left/right disagreement, in pixels, that the consistency check accepts.
+    """
+
+    tad_weight: Any = 0.05
+    gradient_weight: Any = 0.15
+    census_weight: Any = 0.8
+    tad_truncation: Any = 0.03
+    gradient_truncation: Any = 0.1
+    segment_weight: Any = 1.0
+    slic_compactness: Any = 10.0
+    lr_tolerance: Any = 1.0
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Params:
+    """All SSW parameters: ``static`` in the pytree metadata, ``dynamic`` as its leaves.
+
+    Examples
+    --------
+    >>> from sswjax import Params
+    >>> p = Params()
+    >>> p.static.aggregation_radius
+    4
+    >>> p2 = p.replace(census_weight=0.5, aggregation_radius=6)
+    >>> (p2.dynamic.census_weight, p2.static.aggregation_radius)
+    (0.5, 6)
+    """
+
+    dynamic: DynamicParams = dataclasses.field(default_factory=DynamicParams)
+    static: StaticParams = dataclasses.field(
+        default_factory=StaticParams, metadata=dict(static=True)
+    )
+
+    def replace(self, **changes) -> Params:
+        """Return a copy with the named fields (static or dynamic) changed."""
+        unknown = set(changes) - set(StaticParams._fields) - set(DynamicParams._fields)
+        if unknown:
+            raise ValueError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        static = self.static._replace(**{k: v for k, v in changes.items() if k in StaticParams._fields})
+        dynamic = self.dynamic._replace(
+            **{k: v for k, v in changes.items() if k in DynamicParams._fields}
+        )
+        return Params(dynamic=dynamic, static=static)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able dict ``{"static": {...}, "dynamic": {...}}``."""
+        return {
+            "static": dict(self.static._asdict()),
+            "dynamic": {k: float(v) for k, v in self.dynamic._asdict().items()},
+        }
+
+
+# Upper bounds a user value must respect (inclusive); lower bounds are in ``_check_value``.
+_INT_FIELDS = {
+    "census_height": (1, 15),
+    "census_width": (1, 15),
+    "n_segments": (0, 1_000_000),
+    "slic_iterations": (1, 100),
+    "aggregation_radius": (1, 50),
+    "aggregation_iterations": (0, 20),
+    "fill_radius": (0, 20),
+    "refine_radius": (0, 20),
+    "refine_iterations": (0, 20),
+}
+_BOOL_FIELDS = ("subpixel", "lr_check")
+_POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness")
+
+
+def _check_value(name: str, value) -> Any:
+    """Validate one field's value from a user; return it with its canonical Python type."""
+    if name in _INT_FIELDS:
+        low, high = _INT_FIELDS[name]
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"parameter {name} must be an integer, got {value!r}")
+        if not low <= value <= high:
+            raise ValueError(f"parameter {name} must be in [{low}, {high}], got {value}")
+        if name in ("census_height", "census_width") and value % 2 == 0:
+            raise ValueError(f"parameter {name} must be odd, got {value}")
+        return value
+    if name in _BOOL_FIELDS:
+        if not isinstance(value, bool):
+            raise ValueError(f"parameter {name} must be true or false, got {value!r}")
+        return value
+    if name == "window_selection":
+        if value not in WINDOW_SELECTIONS:
+            raise ValueError(f"parameter window_selection must be one of {WINDOW_SELECTIONS}, got {value!r}")
+        return value
+    # dynamic: finite, non-negative reals; truncations and compactness strictly positive
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"parameter {name} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value < 0 or (name in _POSITIVE_FIELDS and value == 0):
+        bound = "> 0" if name in _POSITIVE_FIELDS else ">= 0"
+        raise ValueError(f"parameter {name} must be a finite number {bound}, got {value}")
+    return value
+
+
+def params_from_dict(data: Mapping) -> Params:
+    """Build validated ``Params`` from ``{"static": {...}, "dynamic": {...}}`` (missing keys default).
+
+    A flat mapping of field names is accepted too. Extra top-level keys ``"provenance"`` and
+    ``"comment"`` are ignored; any other unknown key raises ``ValueError``.
+    """
+    if not isinstance(data, Mapping):
+        raise ValueError(f"parameters must be a JSON object, got {type(data).__name__}")
+    flat: dict = {}
+    for key, value in data.items():
+        if key in ("static", "dynamic") and isinstance(value, Mapping):
+            fields = StaticParams._fields if key == "static" else DynamicParams._fields
+            for name, item in value.items():
+                if name not in fields:
+                    raise ValueError(f"unknown {key} parameter {name!r}")
+                flat[name] = item
+        elif key in ("provenance", "comment"):
+            continue
+        elif key in StaticParams._fields or key in DynamicParams._fields:
+            flat[key] = value
+        else:
+            raise ValueError(f"unknown parameter {key!r}")
+    return Params().replace(**{name: _check_value(name, value) for name, value in flat.items()})
+
+
+def load_params(path: str | os.PathLike) -> Params:
+    """Read parameters from a JSON file written by :func:`save_params` (or by hand).
+
+    Raises ``ValueError`` with a one-line message for a missing file, invalid JSON, unknown keys,
+    wrong types or out-of-range values.
+    """
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise ValueError(f"parameter file not found: {path}") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"cannot read parameter file {path}: {error}") from None
+    try:
+        return params_from_dict(data)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
+
+
+def save_params(path: str | os.PathLike, params: Params, *, provenance: Mapping | None = None) -> None:
+    """Write ``params`` (and optional provenance) as JSON, atomically."""
+    from sswjax.io import atomic_output
+
+    data = params.to_dict()
+    if provenance is not None:
+        data["provenance"] = dict(provenance)
+    with atomic_output(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as handle:
+            json.dump(data, handle, indent=2)
+            handle.write("\n")

@@ -1,0 +1,243 @@
+"""The SSW pipeline: cost, segment-side-window aggregation, selection and refinement composed.
+
+Array conventions (whole module): the pure functions take images float32 ``(H, W, C)`` with
+C in {1, 3} and values in [0, 1], a :class:`~sswjax.params.Params` pytree and a static
+``ndisp``; they return float32 ``(H, W)`` disparities in pixels, dense, in [0, ndisp - 1].
+:func:`match` is the NumPy front door: it accepts uint8, uint16 or float images, gray or colour,
+validates them and returns a NumPy array.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
+from sswjax.aggregation import aggregate_cost
+from sswjax.cost import cost_volume
+from sswjax.filters import side_window_median_filter
+from sswjax.params import Params
+from sswjax.refinement import fill_invalid, left_right_consistency, right_cost_volume
+from sswjax.segments import slic, slic_grid_shape
+from sswjax.selection import subpixel_parabola, winner_takes_all
+
+
+def _check_pair(left, right, ndisp: int) -> None:
+    check_rank("left", left, 3)
+    check_floating("left", left)
+    check_same_shape("left", left, "right", right)
+    if left.shape[-1] not in (1, 3):
+        raise ValueError(f"images must have 1 or 3 channels, got shape {tuple(left.shape)}")
+    check_positive_int("ndisp", ndisp)
+    if ndisp >= left.shape[1]:
+        raise ValueError(f"ndisp must be smaller than the image width {left.shape[1]}, got {ndisp}")
+
+
+def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
+    """SLIC labels of the left image and their static count (0 when the segment term is off).
+
+    Parameters
+    ----------
+    left : float32 (H, W, C)
+    params : Params
+
+    Returns
+    -------
+    (int32 (H, W), int)
+    """
+    static = params.static
+    if static.n_segments == 0:
+        return jnp.zeros(left.shape[:2], jnp.int32), 0
+    height, width = left.shape[:2]
+    ny, nx = slic_grid_shape(height, width, static.n_segments)
+    image = left if left.shape[-1] == 3 else jnp.repeat(left, 3, axis=-1)
+    labels = slic(
+        image,
+        n_segments=static.n_segments,
+        compactness=params.dynamic.slic_compactness,
+        iterations=static.slic_iterations,
+    )
+    return labels, ny * nx
+
+
+def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int) -> jax.Array:
+    """Eq. (5)-(7): matching cost, superpixels and segment-side-window aggregation.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+    ndisp : int, 1 <= ndisp < W
+
+    Returns
+    -------
+    float32 (ndisp, H, W), lower is better.
+    """
+    _check_pair(left, right, ndisp)
+    static, dynamic = params.static, params.dynamic
+    cost = cost_volume(
+        left,
+        right,
+        ndisp=ndisp,
+        tad_weight=dynamic.tad_weight,
+        gradient_weight=dynamic.gradient_weight,
+        census_weight=dynamic.census_weight,
+        tad_truncation=dynamic.tad_truncation,
+        gradient_truncation=dynamic.gradient_truncation,
+        census_height=static.census_height,
+        census_width=static.census_width,
+    )
+    labels, num_segments = superpixels(left, params)
+    return aggregate_cost(
+        cost,
+        left,
+        radius=static.aggregation_radius,
+        iterations=static.aggregation_iterations,
+        window_selection=static.window_selection,
+        labels=labels,
+        num_segments=num_segments,
+        segment_weight=dynamic.segment_weight,
+    )
+
+
+def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
+    """Eq. (8)-(9): WTA (+ parabola), left-right check, filling, side-window median.
+
+    Parameters
+    ----------
+    cost : float32 (D, H, W)
+        Aggregated cost of the left view.
+    params : Params
+
+    Returns
+    -------
+    float32 (H, W), dense, in [0, D - 1].
+    """
+    check_rank("cost", cost, 3)
+    static = params.static
+    winners = winner_takes_all(cost)
+    disparity = subpixel_parabola(cost, winners) if static.subpixel else winners.astype(jnp.float32)
+    if static.lr_check:
+        right_winners = winner_takes_all(right_cost_volume(cost))
+        valid = left_right_consistency(
+            winners, right_winners, tolerance=params.dynamic.lr_tolerance
+        )
+        disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
+    if static.refine_radius > 0 and static.refine_iterations > 0:
+        disparity = side_window_median_filter(
+            disparity, radius=static.refine_radius, iterations=static.refine_iterations
+        )
+    return jnp.clip(disparity, 0, cost.shape[0] - 1)
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp",))
+def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int) -> jax.Array:
+    """The whole SSW method as one jitted pure function.
+
+    ``params.static`` is pytree metadata, so changing it (or the image size, or ``ndisp``)
+    recompiles; ``params.dynamic`` is traced. ``jax.vmap`` batches it over pairs of one size:
+    ``jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=n))(lefts, rights)``.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+    ndisp : int, 1 <= ndisp < W
+
+    Returns
+    -------
+    float32 (H, W), dense disparities of the left view in pixels, in [0, ndisp - 1].
+    """
+    return select_and_refine(aggregated_cost(left, right, params, ndisp=ndisp), params)
+
+
+def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a user's pair and convert it to float32 ``(H, W, C)`` in [0, 1].
+
+    Gray ``(H, W)`` or ``(H, W, 1)``, RGB ``(H, W, 3)`` and RGBA ``(H, W, 4)`` (alpha dropped)
+    are accepted, as uint8, uint16 or floating arrays (floats must be finite; they are used as
+    given, assumed in [0, 1]). If one image is gray and the other colour, both are used as gray.
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
+    """
+    from sswjax.color import rgb_to_gray
+
+    def convert(name, image):
+        image = np.asarray(image)
+        if image.ndim == 2:
+            image = image[..., None]
+        if image.ndim != 3 or image.shape[-1] not in (1, 3, 4):
+            raise ValueError(
+                f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}"
+            )
+        image = image[..., :3]
+        if image.dtype == np.uint8:
+            image = image.astype(np.float32) / 255
+        elif image.dtype == np.uint16:
+            image = image.astype(np.float32) / 65535
+        elif np.issubdtype(image.dtype, np.floating):
+            image = image.astype(np.float32)
+            if not np.isfinite(image).all():
+                raise ValueError(f"{name} image contains NaN or infinite values")
+        else:
+            raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
+        return image
+
+    left, right = convert("left", left), convert("right", right)
+    if left.shape[:2] != right.shape[:2]:
+        raise ValueError(
+            f"left and right images differ in size: {left.shape[1]}x{left.shape[0]} "
+            f"and {right.shape[1]}x{right.shape[0]}"
+        )
+    if left.shape[-1] != right.shape[-1]:
+        left, right = (
+            np.asarray(rgb_to_gray(im))[..., None] if im.shape[-1] == 3 else im
+            for im in (left, right)
+        )
+    return left, right
+
+
+def match(left, right, ndisp: int, params: Params | None = None) -> np.ndarray:
+    """Dense disparity map of a rectified stereo pair with the SSW method.
+
+    Parameters
+    ----------
+    left, right : array_like (H, W) or (H, W, 1|3|4), uint8, uint16 or float in [0, 1]
+        Rectified pair; the left image is the reference view.
+    ndisp : int
+        Disparities searched: 0 .. ndisp - 1 (Middlebury ``calib.txt`` ``ndisp``); 1 <= ndisp < W.
+    params : Params, optional
+        Defaults to ``Params()``; see :func:`sswjax.load_params`.
+
+    Returns
+    -------
+    numpy.ndarray, float32 (H, W)
+        Disparity of every left pixel in pixels (dense, no invalid values).
+
+    Examples
+    --------
+    >>> import numpy as np, sswjax
+    >>> rng = np.random.default_rng(0)
+    >>> right = rng.random((40, 64, 3), dtype=np.float32)
+    >>> left = np.roll(right, 5, axis=1)          # the scene moved 5 px: disparity 5
+    >>> d = sswjax.match(left, right, ndisp=16)
+    >>> float(np.median(d[:, 16:]))
+    5.0
+    """
+    if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
+        raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
+    left, right = prepare_pair(left, right)
+    if not 1 <= ndisp < left.shape[1]:
+        raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
+    params = Params() if params is None else params
+    min_side = max(params.static.census_height, params.static.census_width)
+    if min(left.shape[:2]) < min_side:
+        raise ValueError(
+            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window"
+        )
+    return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
