@@ -1,5 +1,8 @@
 """Tests for sswjax.filters against brute-force NumPy references (tiny arrays, plain loops)."""
 
+import functools
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -34,18 +37,15 @@ def window_extents(r):
     ]
 
 
-def window_values(image, y, x, extent):
-    """Values of a 2-D image in one window around (y, x), borders edge-replicated."""
+def edge_pad(image, r):
+    """Edge-replicated padding by r on both sides of a 2-D image (float64)."""
+    return np.pad(np.asarray(image, np.float64), r, mode="edge")
+
+
+def window_values(padded, r, y, x, extent):
+    """Values in one window around (y, x) of an image padded by r (edge replication)."""
     (y0, y1), (x0, x1) = extent
-    h, w = image.shape
-    return np.array(
-        [
-            image[min(max(y + dy, 0), h - 1), min(max(x + dx, 0), w - 1)]
-            for dy in range(y0, y1 + 1)
-            for dx in range(x0, x1 + 1)
-        ],
-        dtype=np.float64,
-    )
+    return padded[y + r + y0 : y + r + y1 + 1, x + r + x0 : x + r + x1 + 1].ravel()
 
 
 def side_window_means_reference(x, r):
@@ -53,11 +53,11 @@ def side_window_means_reference(x, r):
     x = np.asarray(x, np.float64)
     out = np.zeros((8,) + x.shape)
     for lead in np.ndindex(*x.shape[:-2]):
-        image = x[lead]
+        padded = edge_pad(x[lead], r)
         for k, extent in enumerate(window_extents(r)):
-            for y in range(image.shape[0]):
-                for xx in range(image.shape[1]):
-                    out[(k, *lead, y, xx)] = window_values(image, y, xx, extent).mean()
+            for y in range(x.shape[-2]):
+                for xx in range(x.shape[-1]):
+                    out[(k, *lead, y, xx)] = window_values(padded, r, y, xx, extent).mean()
     return out
 
 
@@ -90,9 +90,10 @@ def median_filter_reference(x, r):
     out = np.zeros_like(x)
     full = ((-r, r), (-r, r))
     for lead in np.ndindex(*x.shape[:-2]):
+        padded = edge_pad(x[lead], r)
         for y in range(x.shape[-2]):
             for xx in range(x.shape[-1]):
-                out[(*lead, y, xx)] = lower_median(window_values(x[lead], y, xx, full))
+                out[(*lead, y, xx)] = lower_median(window_values(padded, r, y, xx, full))
     return out
 
 
@@ -102,15 +103,21 @@ def side_window_median_reference(x, r, iterations):
         out = np.zeros_like(x)
         for lead in np.ndindex(*x.shape[:-2]):
             image = x[lead]
+            padded = edge_pad(image, r)
             for y in range(image.shape[0]):
                 for xx in range(image.shape[1]):
                     medians = [
-                        lower_median(window_values(image, y, xx, extent)) for extent in window_extents(r)
+                        lower_median(window_values(padded, r, y, xx, extent)) for extent in window_extents(r)
                     ]
                     distances = [abs(m - image[y, xx]) for m in medians]
                     out[(*lead, y, xx)] = medians[int(np.argmin(distances))]  # first on ties
         x = out
     return x
+
+
+def jitted(fn, *arrays, **static):
+    """Run ``fn`` under ``jax.jit`` (static keyword arguments); one compile beats many eager ops."""
+    return np.asarray(jax.jit(functools.partial(fn, **static))(*(jnp.asarray(a) for a in arrays)))
 
 
 @pytest.fixture
@@ -126,7 +133,7 @@ def rng():
 @pytest.mark.parametrize("radius", [1, 2, 3])
 def test_side_window_means_2d(radius, method):
     x = np.random.default_rng(radius).random((9, 11)).astype(np.float32)
-    ours = np.asarray(side_window_means(jnp.asarray(x), radius=radius, method=method))
+    ours = jitted(side_window_means, x, radius=radius, method=method)
     assert ours.shape == (8, 9, 11)
     np.testing.assert_allclose(ours, side_window_means_reference(x, radius), atol=1e-5, rtol=0)
 
@@ -135,7 +142,7 @@ def test_side_window_means_2d(radius, method):
 @pytest.mark.parametrize("radius", [1, 2, 3])
 def test_side_window_means_batched(radius, method):
     x = np.random.default_rng(10 + radius).random((2, 9, 11)).astype(np.float32)
-    ours = np.asarray(side_window_means(jnp.asarray(x), radius=radius, method=method))
+    ours = jitted(side_window_means, x, radius=radius, method=method)
     assert ours.shape == (8, 2, 9, 11)
     np.testing.assert_allclose(ours, side_window_means_reference(x, radius), atol=1e-5, rtol=0)
 
@@ -144,7 +151,7 @@ def test_side_window_means_radius_larger_than_image():
     # radius beyond the image: everything comes from the edge replication
     x = np.random.default_rng(5).random((3, 4)).astype(np.float32)
     for method in ("slices", "cumsum"):
-        ours = np.asarray(side_window_means(jnp.asarray(x), radius=5, method=method))
+        ours = jitted(side_window_means, x, radius=5, method=method)
         np.testing.assert_allclose(ours, side_window_means_reference(x, 5), atol=1e-5, rtol=0)
 
 
@@ -162,7 +169,7 @@ def test_side_window_means_rejects_bad_method():
 def test_side_window_index(channels, method, rng):
     shape = (9, 11) if channels is None else (channels, 9, 11)
     guide = rng.random(shape).astype(np.float32)
-    ours = np.asarray(side_window_index(jnp.asarray(guide), radius=2, method=method))
+    ours = jitted(side_window_index, guide, radius=2, method=method)
     assert ours.dtype == np.int32
     np.testing.assert_array_equal(ours, index_reference(guide, 2))
     # most of the eight windows occur on random data (the test is not vacuous)
@@ -170,11 +177,24 @@ def test_side_window_index(channels, method, rng):
 
 
 @pytest.mark.parametrize("method", ["slices", "cumsum"])
+def test_side_window_index_first_window_on_ties(method, rng):
+    # a flat guide: all eight windows are equally close, the first (L) wins (zeros: every
+    # window mean is exactly 0 whatever the rounding of 1 / count, so the distances tie)
+    flat = np.zeros((2, 9, 11), np.float32)
+    np.testing.assert_array_equal(jitted(side_window_index, flat, radius=2, method=method), 0)
+    x = rng.random((9, 11)).astype(np.float32)
+    guided = jitted(
+        lambda x, g: side_window_box_filter(x, radius=2, iterations=1, guide=g, method=method), x, flat
+    )
+    np.testing.assert_allclose(guided, side_window_means_reference(x, 2)[0], atol=1e-5, rtol=0)
+
+
+@pytest.mark.parametrize("method", ["slices", "cumsum"])
 def test_select_side_window_mean(method, rng):
     guide = rng.random((3, 9, 11)).astype(np.float32)
     x = rng.random((4, 9, 11)).astype(np.float32)
     index = index_reference(guide, 2).astype(np.int32)
-    ours = np.asarray(select_side_window_mean(jnp.asarray(x), jnp.asarray(index), radius=2, method=method))
+    ours = jitted(select_side_window_mean, x, index, radius=2, method=method)
     reference = select_reference(side_window_means_reference(x, 2), index)
     np.testing.assert_allclose(ours, reference, atol=1e-5, rtol=0)
 
@@ -186,7 +206,7 @@ def test_select_side_window_mean(method, rng):
 @pytest.mark.parametrize("method", ["slices", "cumsum"])
 def test_side_window_box_filter_per_slice(method, rng):
     x = rng.random((2, 9, 11)).astype(np.float32)
-    ours = np.asarray(side_window_box_filter(jnp.asarray(x), radius=2, iterations=3, method=method))
+    ours = jitted(side_window_box_filter, x, radius=2, iterations=3, method=method)
     reference = x.astype(np.float64)
     for _ in range(3):
         reference = closest_mean_reference(reference, 2)
@@ -199,19 +219,19 @@ def test_side_window_box_filter_guided(guide_channels, method, rng):
     shape = (9, 11) if guide_channels is None else (guide_channels, 9, 11)
     guide = rng.random(shape).astype(np.float32)
     x = rng.random((3, 9, 11)).astype(np.float32)
-    ours = np.asarray(
-        side_window_box_filter(jnp.asarray(x), radius=1, iterations=3, guide=jnp.asarray(guide), method=method)
+    ours = jitted(
+        lambda x, guide: side_window_box_filter(x, radius=1, iterations=2, guide=guide, method=method), x, guide
     )
     ref_x, ref_guide = x.astype(np.float64), guide.astype(np.float64)
-    for _ in range(3):
+    for _ in range(2):
         index = index_reference(ref_guide, 1)
         ref_x = select_reference(side_window_means_reference(ref_x, 1), index)
         ref_guide = select_reference(side_window_means_reference(ref_guide, 1), index)
     np.testing.assert_allclose(ours, ref_x, atol=1e-5, rtol=0)
-    # the guide evolves: one guided pass is not the same as three guided by the fixed guide
+    # the guide evolves: not the same as two passes with windows chosen on the initial guide
     fixed = x.astype(np.float64)
     index = index_reference(guide.astype(np.float64), 1)
-    for _ in range(3):
+    for _ in range(2):
         fixed = select_reference(side_window_means_reference(fixed, 1), index)
     assert np.abs(fixed - ref_x).max() > 1e-3
 
@@ -225,16 +245,19 @@ def test_side_window_box_filter_zero_iterations_is_identity(rng):
 def test_side_window_box_filter_preserves_step_edges(method):
     vertical = np.zeros((9, 11), np.float32)
     vertical[:, 5:] = 1.0
-    horizontal = np.ascontiguousarray(vertical[:, :9].T)  # (9, 9), step along y
+    horizontal = np.zeros((9, 11), np.float32)
+    horizontal[4:, :] = 1.0
     corner = np.zeros((9, 11), np.float32)
     corner[4:, 6:] = 1.0  # a convex corner: kept by the quadrant windows
+    plain = jax.jit(lambda x: side_window_box_filter(x, radius=2, iterations=3, method=method))
+    guided = jax.jit(lambda x: side_window_box_filter(x[None], radius=2, iterations=2, guide=x, method=method)[0])
     for step in (vertical, horizontal, corner):
-        out = side_window_box_filter(jnp.asarray(step), radius=2, iterations=3, method=method)
-        np.testing.assert_array_equal(np.asarray(out), step)
-        guided = side_window_box_filter(
-            jnp.asarray(step)[None], radius=2, iterations=2, guide=jnp.asarray(step), method=method
-        )
-        np.testing.assert_array_equal(np.asarray(guided)[0], step)
+        np.testing.assert_array_equal(np.asarray(plain(jnp.asarray(step))), step)
+        np.testing.assert_array_equal(np.asarray(guided(jnp.asarray(step))), step)
+    # and eagerly (no jit) too
+    np.testing.assert_array_equal(
+        np.asarray(side_window_box_filter(jnp.asarray(corner), radius=1, iterations=1, method=method)), corner
+    )
 
 
 def test_side_window_box_filter_rejects_guide_of_other_size():
