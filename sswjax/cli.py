@@ -1,4 +1,4 @@
-"""The ``sswjax`` command line: ``match``, ``demo`` and ``evaluate``.
+"""The ``sswjax`` command line: ``match``, ``demo``, ``evaluate`` and ``download``.
 
 Errors in the user's input (files, sizes, parameters) print one line on stderr and exit with
 status 2; ``--debug`` shows the traceback instead. Every output is written to a temporary file
@@ -117,6 +117,15 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
+def cmd_download(args) -> int:
+    """``sswjax download middeval3``: fetch and unpack the Middlebury MiddEval3 archives."""
+    from sswjax.download import download_middeval3
+
+    root = download_middeval3(args.dest, resolution=args.resolution, keep_archives=args.keep_archives)
+    print(f"MiddEval3 {args.resolution} ready in {root}; evaluate with: sswjax evaluate --data {root}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -144,6 +153,13 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--params", type=Path, help="parameters JSON (default: built-in)")
     evaluate.add_argument("-o", "--output", type=Path, help="folder for disparities and results.md")
     evaluate.set_defaults(run=cmd_evaluate)
+
+    download = commands.add_parser("download", help="download a stereo dataset")
+    download.add_argument("dataset", choices=["middlebury"], help="dataset (MiddEval3)")
+    download.add_argument("--resolution", choices=["Q", "H", "F"], default="Q")
+    download.add_argument("--dest", type=Path, default=Path("data"), help="folder to fill (data)")
+    download.add_argument("--keep-archives", action="store_true", help="keep the zip files")
+    download.set_defaults(run=cmd_download)
     return parser
 
 
