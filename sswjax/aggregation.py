@@ -7,9 +7,10 @@ superpixel labels are int32 ``(H, W)`` in ``[0, num_segments)``.
 Interpretation of Eq. (7). The paper filters ``w(p, q) [C(p, d) + S(p)]`` over a side window,
 with ``S(p)`` "the SLIC value". A label id added to a cost has no meaning, so we read ``S`` as a
 segment-level cost: ``S(p, d)`` = mean of ``C(., d)`` over the superpixel of ``p``. The filter
-input is ``C + lambda * S`` (the blend before filtering measured best: see the README's design
-notes), and ``w(p, q)`` is the uniform weight of the side-window box filter, the window being
-chosen per pixel on the guide image (or per cost slice, as an option).
+input is ``C + lambda * S`` (blended before filtering), and ``w(p, q)`` is the uniform weight of
+the side-window box filter. The window is chosen independently on every cost slice (default) or
+once per pixel on the guide image, shared by all disparities; on trainingQ the per-slice choice
+measured better once the segment term is in (see the README's design notes).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def aggregate_cost(
     *,
     radius: int,
     iterations: int,
-    window_selection: str = "guide",
+    window_selection: str = "slice",
     labels: jax.Array | None = None,
     num_segments: int = 0,
     segment_weight=1.0,

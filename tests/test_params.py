@@ -190,7 +190,7 @@ def test_jit_recompiles_on_static_change_only():
     assert len(traces) == 2
     np.testing.assert_allclose(f(Params().replace(aggregation_radius=6, census_weight=0.1), x), 0.1 + 6)
     assert len(traces) == 2
-    f(Params().replace(window_selection="slice"), x)
+    f(Params().replace(window_selection="guide"), x)
     assert len(traces) == 3
     # back to the first static values: cached
     f(Params(), x)
