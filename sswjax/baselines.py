@@ -6,10 +6,10 @@ Array conventions (whole module): filtered arrays (cost volumes, cost slices) ar
 ``(..., H, W)``; the filters act on the last two axes and treat leading axes (disparities) as a
 batch: every slice is filtered with the same guide-derived weights, so a cost volume
 ``(D, H, W)`` is filtered in one vectorised pass. Guides are the left image, float32
-``(H, W, C)`` (or ``(H, W)`` for gray) with values in [0, 1]. Borders are edge-replicated once,
-before filtering, as in :mod:`sswjax.filters`. Every window is the square
-``(2 r + 1) x (2 r + 1)`` centred on the pixel. Outputs are float32 with the shape of the
-filtered input.
+``(H, W, C)`` (or ``(H, W)`` for gray) with values in [0, 1]. Every window is the square
+``(2 r + 1) x (2 r + 1)`` centred on the pixel; borders are edge-replicated (each window sum
+pads its own input by ``r``), as in :mod:`sswjax.filters`. Outputs are float32 with the shape
+of the filtered input.
 
 All functions are pure and ``jax.jit``-able with ``radius`` (and ``iterations``) static; the
 other numeric options (``eps``, ``sigma_space``, ``sigma_color``) may be traced scalars. No
@@ -91,9 +91,9 @@ def _window_sum_1d(padded: jax.Array, radius: int, axis: int) -> jax.Array:
     """
     window = [1] * padded.ndim
     window[axis] = 2 * radius + 1
-    return jax.lax.reduce_window(
-        padded, jnp.array(0.0, padded.dtype), jax.lax.add, tuple(window), (1,) * padded.ndim, "VALID"
-    )
+    zero = jnp.array(0.0, padded.dtype)
+    strides = (1,) * padded.ndim
+    return jax.lax.reduce_window(padded, zero, jax.lax.add, tuple(window), strides, "VALID")
 
 
 def _box_mean(x: jax.Array, radius: int) -> jax.Array:
@@ -383,7 +383,9 @@ def bilateral_filter(
         for dx in range(-r, r + 1):
             rows = slice(r + dy, r + dy + height)
             cols = slice(r + dx, r + dx + width)
-            color_distance = jnp.square(g - g_padded[:, rows, cols]).sum(axis=0)
+            neighbour = g_padded[:, rows, cols]
+            # Channel sum as explicit adds: an XLA reduce over the channel axis ran 30x slower.
+            color_distance = sum(jnp.square(g[c] - neighbour[c]) for c in range(g.shape[0]))
             weight = jnp.exp(space_scale * float(dy * dy + dx * dx) + color_scale * color_distance)
             numerator = numerator + weight * x_padded[..., rows, cols]
             denominator = denominator + weight
