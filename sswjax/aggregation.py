@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_rank
+from sswjax.baselines import BASELINE_AGGREGATORS, BASELINE_RADIUS
 from sswjax.filters import side_window_box_filter
 from sswjax.segments import segment_mean
 
@@ -48,6 +49,7 @@ def aggregate_cost(
     radius: int,
     iterations: int,
     window_selection: str = "slice",
+    method: str = "ssw",
     labels: jax.Array | None = None,
     num_segments: int = 0,
     segment_weight=1.0,
@@ -63,6 +65,9 @@ def aggregate_cost(
     radius, iterations : int
         Side-window radius and number of filtering passes.
     window_selection : {"guide", "slice"}
+    method : {"ssw", "box", "bf", "gf", "igf", "mf"}
+        ``"ssw"``, or a baseline of :mod:`sswjax.baselines` that replaces the whole step (segment
+        term included) with its own radius (``BASELINE_RADIUS``).
     labels : int32 (H, W), optional
         Superpixels; without them (or with ``num_segments=0``) the segment term is off.
     num_segments : int
@@ -78,6 +83,10 @@ def aggregate_cost(
     check_rank("guide", guide, 3)
     if guide.shape[:2] != cost.shape[1:]:
         raise ValueError(f"guide size {guide.shape[:2]} differs from cost size {cost.shape[1:]}")
+    if method != "ssw":
+        if method not in BASELINE_AGGREGATORS:
+            raise ValueError(f"unknown aggregation method {method!r}")
+        return BASELINE_AGGREGATORS[method](cost, guide, radius=BASELINE_RADIUS[method])
     if labels is not None and num_segments > 0:
         cost = cost + segment_weight * segment_cost(cost, labels, num_segments=num_segments)
     if window_selection == "guide":

@@ -32,6 +32,7 @@ from sswjax.filters import median_filter
 
 __all__ = [
     "BASELINE_AGGREGATORS",
+    "BASELINE_RADIUS",
     "bilateral_filter",
     "box_filter",
     "guided_filter",
@@ -439,3 +440,7 @@ BASELINE_AGGREGATORS: dict[str, Callable[..., jax.Array]] = {
 [0, 1]; returns the aggregated float32 (D, H, W) cost. Options other than ``radius`` take their
 defaults; "box" and "mf" ignore the guide.
 """
+
+BASELINE_RADIUS: dict[str, int] = {"box": 4, "bf": 4, "gf": 9, "igf": 9, "mf": 2}
+"""The radius each baseline runs with in the pipeline: the usual settings of local stereo
+(bilateral window 9, guided filter r 9 as in Hosni et al. 2013, median 5x5, box as SSW's r)."""

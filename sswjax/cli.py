@@ -92,27 +92,49 @@ def cmd_demo(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    """``sswjax evaluate``: SSW over a MiddEval3 folder, per-scene table and weighted averages."""
-    import sswjax
+    """``sswjax evaluate``: methods over a MiddEval3 folder; tables, CSV, figure, disparities."""
     from sswjax.datasets import find_data_root, load_middeval3
-    from sswjax.evaluation import evaluate_scenes, markdown_table
+    from sswjax.evaluation import (
+        evaluate_scenes,
+        markdown_table,
+        summary_markdown,
+        table1_markdown,
+        write_metrics_csv,
+    )
     from sswjax.io import atomic_output, write_pfm
+    from sswjax.methods import make_method, submission_name
 
-    params = _params(args.params)
-    root = find_data_root(args.data)
-    scenes = load_middeval3(root, split=args.split, scenes=args.scenes)
-    results = evaluate_scenes(lambda l, r, n: sswjax.match(l, r, n, params), scenes, progress=True)
-    table = markdown_table(results)
-    print(table)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    runners = {name: make_method(name, _params(args.params)) for name in methods}
     if args.output is not None:
-        for result in results:
-            folder = args.output / "ssw" / result.scene
-            folder.mkdir(parents=True, exist_ok=True)
-            write_pfm(folder / "disp0SSW.pfm", result.disparity)
-            with atomic_output(folder / "timeSSW.txt") as tmp:
-                tmp.write_text(f"{result.seconds:.3f}\n")
+        args.output.mkdir(parents=True, exist_ok=True)
+    scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
+    results = {}
+    for name, method in runners.items():
+        print(f"{name}:", file=sys.stderr)
+        results[name] = evaluate_scenes(method, scenes, progress=True)
+        if args.output is not None:
+            tag = submission_name(name)
+            for result in results[name]:
+                folder = args.output / name / result.scene
+                folder.mkdir(parents=True, exist_ok=True)
+                write_pfm(folder / f"disp0{tag}.pfm", result.disparity)
+                with atomic_output(folder / f"time{tag}.txt") as tmp:
+                    tmp.write_text(f"{result.seconds:.3f}\n")
+    text = "\n\n".join(
+        ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)", summary_markdown(results),
+         "## Table 1 layout, bad 2.0 (ours) beside the paper's figures", table1_markdown(results)]
+        + [f"## {name}\n\n{markdown_table(rows)}" for name, rows in results.items()]
+    )
+    print(text)
+    if args.output is not None:
         with atomic_output(args.output / "results.md") as tmp:
-            tmp.write_text(table + "\n")
+            tmp.write_text(text + "\n")
+        write_metrics_csv(args.output / "metrics.csv", results)
+        if args.figure:
+            from sswjax.figures import comparison_figure
+
+            comparison_figure(args.output / "comparison.png", scenes, results)
         print(f"wrote {args.output}")
     return 0
 
@@ -145,13 +167,19 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--params", type=Path, help="parameters JSON (default: built-in)")
     demo.set_defaults(run=cmd_demo)
 
-    evaluate = commands.add_parser("evaluate", help="score SSW on MiddEval3 scenes")
+    evaluate = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
     evaluate.add_argument("--data", type=Path, help="MiddEval3 folder (default: $SSWJAX_DATA, "
                           "then ../shared/data/MiddEval3 beside the project)")
     evaluate.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
     evaluate.add_argument("--scenes", nargs="+", help="only these scenes")
-    evaluate.add_argument("--params", type=Path, help="parameters JSON (default: built-in)")
-    evaluate.add_argument("-o", "--output", type=Path, help="folder for disparities and results.md")
+    evaluate.add_argument("--methods", default="ssw",
+                          help="comma-separated: ssw, bf, gf, igf, mf, box, sgbm, ablations "
+                               "ssw-noseg, ssw-norefine, ssw-nolr, ssw-guide, ssw-tad, ssw-gm, ssw-census")
+    evaluate.add_argument("--params", type=Path, help="base parameters JSON (default: built-in)")
+    evaluate.add_argument("-o", "--output", type=Path,
+                          help="folder for disparities (MiddEval3 layout), results.md, metrics.csv")
+    evaluate.add_argument("--figure", action="store_true",
+                          help="also write comparison.png (needs matplotlib)")
     evaluate.set_defaults(run=cmd_evaluate)
 
     download = commands.add_parser("download", help="download a stereo dataset")

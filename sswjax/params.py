@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 import jax
 
 WINDOW_SELECTIONS = ("guide", "slice")
+AGGREGATIONS = ("ssw", "box", "bf", "gf", "igf", "mf")
 
 
 class StaticParams(NamedTuple):
@@ -39,6 +40,10 @@ class StaticParams(NamedTuple):
         Side-window radius r of the cost aggregation (Eq. 7).
     aggregation_iterations : int
         Number of side-window filtering passes over the cost volume.
+    aggregation : str
+        ``"ssw"`` (segment-side-window, the method) or a baseline aggregator that replaces it,
+        everything else unchanged: ``"box"``, ``"bf"`` (bilateral), ``"gf"`` (guided filter),
+        ``"igf"`` (iterated guided filter), ``"mf"`` (median); see :mod:`sswjax.baselines`.
     window_selection : str
         ``"guide"``: each pixel's side window is chosen on the left image and shared by all
         disparities; ``"slice"``: chosen independently on every cost slice (Yin et al. 2019).
@@ -62,6 +67,7 @@ class StaticParams(NamedTuple):
     slic_iterations: int = 10
     aggregation_radius: int = 4
     aggregation_iterations: int = 3
+    aggregation: str = "ssw"
     window_selection: str = "slice"
     subpixel: bool = True
     lr_check: bool = True
@@ -169,6 +175,10 @@ def _check_value(name: str, value) -> Any:
     if name in _BOOL_FIELDS:
         if not isinstance(value, bool):
             raise ValueError(f"parameter {name} must be true or false, got {value!r}")
+        return value
+    if name == "aggregation":
+        if value not in AGGREGATIONS:
+            raise ValueError(f"parameter aggregation must be one of {AGGREGATIONS}, got {value!r}")
         return value
     if name == "window_selection":
         if value not in WINDOW_SELECTIONS:

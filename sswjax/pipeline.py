@@ -37,7 +37,7 @@ def _check_pair(left, right, ndisp: int) -> None:
 
 
 def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
-    """SLIC labels of the left image and their static count (0 when the segment term is off).
+    """SLIC labels of the left image and their static count (0 when no segment term is used).
 
     Parameters
     ----------
@@ -49,7 +49,7 @@ def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
     (int32 (H, W), int)
     """
     static = params.static
-    if static.n_segments == 0:
+    if static.n_segments == 0 or static.aggregation != "ssw":
         return jnp.zeros(left.shape[:2], jnp.int32), 0
     height, width = left.shape[:2]
     ny, nx = slic_grid_shape(height, width, static.n_segments)
@@ -97,6 +97,7 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
         radius=static.aggregation_radius,
         iterations=static.aggregation_iterations,
         window_selection=static.window_selection,
+        method=static.aggregation,
         labels=labels,
         num_segments=num_segments,
         segment_weight=dynamic.segment_weight,
