@@ -2,12 +2,15 @@
 
 Errors in the user's input (files, sizes, parameters) print one line on stderr and exit with
 status 2; ``--debug`` shows the traceback instead. Every output is written to a temporary file
-and renamed into place, so an existing file survives a failed run.
+and renamed into place, so an existing file survives a failed run. Ctrl-C exits with status 130;
+``sswjax evaluate -o DIR`` writes each scene as soon as it is done, and its ``--resume``
+continues an interrupted run without recomputing the finished scenes.
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -15,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
 
 
 class _Parser(argparse.ArgumentParser):
@@ -40,8 +44,13 @@ def _write_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None, nd
 
 
 def _check_output_dir(*paths: Path | None) -> None:
+    """Fail before any work if an output file cannot be created where the user asked."""
     for path in paths:
-        if path is not None and not path.parent.is_dir():
+        if path is None:
+            continue
+        if path.is_dir():
+            raise ValueError(f"output {path} is a folder, expected a file name")
+        if not path.parent.is_dir():
             raise ValueError(f"output folder does not exist: {path.parent}")
 
 
@@ -91,36 +100,122 @@ def cmd_demo(args) -> int:
     return 0
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, carrying the one-line message shown to the user (what was kept, how to resume)."""
+
+
+def _resume_command(argv: list[str]) -> str:
+    """The user's command line with ``--resume`` added (once)."""
+    return shlex.join(["sswjax", *argv] + ([] if "--resume" in argv else ["--resume"]))
+
+
+def _write_scene_result(folder: Path, tag: str, result) -> None:
+    """Atomically write one scene's ``disp0<TAG>.pfm`` and ``time<TAG>.txt``.
+
+    The disparity goes first: ``--resume`` needs both files, so an interruption between the two
+    writes costs a recomputation but never pairs a new time with an old disparity map.
+    """
+    from sswjax.io import atomic_output, write_pfm
+
+    folder.mkdir(parents=True, exist_ok=True)
+    write_pfm(folder / f"disp0{tag}.pfm", result.disparity)
+    with atomic_output(folder / f"time{tag}.txt") as tmp:
+        tmp.write_text(f"{result.seconds:.3f}\n")
+
+
+def _saved_scene_result(folder: Path, tag: str, scene):
+    """A scene's result read back from ``folder`` (metrics recomputed) and a note for the user.
+
+    Returns ``(None, None)`` when the files are absent and ``(None, reason)`` when they cannot
+    be used (the scene is then recomputed).
+    """
+    from sswjax.evaluation import evaluate_scene
+    from sswjax.io import InputError, read_pfm
+
+    pfm, time_file = folder / f"disp0{tag}.pfm", folder / f"time{tag}.txt"
+    if not (pfm.is_file() and time_file.is_file()):
+        return None, None
+    try:
+        disparity = read_pfm(pfm)
+        seconds = float(time_file.read_text(encoding="ascii").strip())
+    except (InputError, OSError, UnicodeDecodeError, ValueError) as error:
+        return None, f"saved result unusable ({str(error).splitlines()[0]}), recomputing"
+    expected = scene.left.shape[:2]
+    if disparity.shape != expected:
+        return None, (f"saved disparity has shape {disparity.shape}, the scene {expected}, "
+                      "recomputing")
+    if not (np.isfinite(seconds) and seconds >= 0):
+        return None, f"saved time {seconds} in {time_file.name} is not valid, recomputing"
+    result = evaluate_scene(lambda left, right, ndisp: disparity, scene)
+    return result._replace(seconds=seconds), None
+
+
 def cmd_evaluate(args) -> int:
-    """``sswjax evaluate``: methods over a MiddEval3 folder; tables, CSV, figure, disparities."""
+    """``sswjax evaluate``: methods over a MiddEval3 folder; tables, CSV, figure, disparities.
+
+    With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
+    Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
+    disparities are read back and their metrics recomputed).
+    """
+    from tqdm import tqdm
+
     from sswjax.datasets import find_data_root, load_middeval3
     from sswjax.evaluation import (
-        evaluate_scenes,
+        evaluate_scene,
         markdown_table,
         summary_markdown,
         table1_markdown,
         write_metrics_csv,
     )
-    from sswjax.io import atomic_output, write_pfm
+    from sswjax.io import atomic_output
     from sswjax.methods import make_method, submission_name
 
+    if args.resume and args.output is None:
+        raise ValueError("--resume needs -o/--output: the folder of the run to continue")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if not methods:
+        raise ValueError(f"no method given in --methods {args.methods!r}")
     runners = {name: make_method(name, _params(args.params)) for name in methods}
+    scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
+    for attribute, file in (("ground_truth", "disp0GT.pfm"), ("mask", "mask0nocc.png")):
+        lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
+        if lacking:
+            raise ValueError(f"cannot score scene(s) without {file}: {', '.join(lacking)} "
+                             f"in {scenes[0].path.parent}")
     if args.output is not None:
         args.output.mkdir(parents=True, exist_ok=True)
-    scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
     results = {}
-    for name, method in runners.items():
-        print(f"{name}:", file=sys.stderr)
-        results[name] = evaluate_scenes(method, scenes, progress=True)
-        if args.output is not None:
+    saved, total = 0, len(runners) * len(scenes)
+    try:
+        for name, method in runners.items():
             tag = submission_name(name)
-            for result in results[name]:
-                folder = args.output / name / result.scene
-                folder.mkdir(parents=True, exist_ok=True)
-                write_pfm(folder / f"disp0{tag}.pfm", result.disparity)
-                with atomic_output(folder / f"time{tag}.txt") as tmp:
-                    tmp.write_text(f"{result.seconds:.3f}\n")
+            rows = results[name] = []
+            resumed = 0
+            print(f"{name}:", file=sys.stderr)
+            with tqdm(scenes, desc="scenes", unit="scene", file=sys.stderr) as bar:
+                for scene in bar:
+                    folder = None if args.output is None else args.output / name / scene.name
+                    result = None
+                    if args.resume:
+                        result, note = _saved_scene_result(folder, tag, scene)
+                        if note:
+                            bar.write(f"{name} {scene.name}: {note}", file=sys.stderr)
+                        resumed += result is not None
+                    if result is None:
+                        result = evaluate_scene(method, scene)
+                        if folder is not None:
+                            _write_scene_result(folder, tag, result)
+                    rows.append(result)
+                    saved += folder is not None
+            if args.resume:
+                print(f"{name}: resumed {resumed} of {len(scenes)} scenes from {args.output / name}",
+                      file=sys.stderr)
+    except KeyboardInterrupt:
+        if args.output is None:
+            raise Interrupted("interrupted; nothing was saved (with -o DIR finished scenes are kept "
+                              "and --resume continues)") from None
+        raise Interrupted(f"interrupted; {saved} of {total} scene results are saved in {args.output}; "
+                          f"continue with: {_resume_command(getattr(args, 'argv', sys.argv[1:]))}") from None
     text = "\n\n".join(
         ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)", summary_markdown(results),
          "## Table 1 layout, bad 2.0 (ours) beside the paper's figures", table1_markdown(results)]
@@ -180,6 +275,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="folder for disparities (MiddEval3 layout), results.md, metrics.csv")
     evaluate.add_argument("--figure", action="store_true",
                           help="also write comparison.png (needs matplotlib)")
+    evaluate.add_argument("--resume", action="store_true",
+                          help="continue an interrupted run: keep the scenes already in -o "
+                               "(disparity and time files) instead of recomputing them")
     evaluate.set_defaults(run=cmd_evaluate)
 
     download = commands.add_parser("download", help="download a stereo dataset")
@@ -192,8 +290,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status (0, 2 for bad input, 130 on Ctrl-C)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = argv
     try:
         return args.run(args)
     except (ValueError, TypeError, OSError) as error:
@@ -202,9 +303,10 @@ def main(argv: list[str] | None = None) -> int:
         message = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
         print(f"sswjax: error: {message}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("sswjax: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as interrupt:
+        print(f"sswjax: {interrupt if isinstance(interrupt, Interrupted) else 'interrupted'}",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

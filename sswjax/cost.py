@@ -19,6 +19,8 @@ and the value never beats a real match).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 from jax import lax
@@ -134,11 +136,109 @@ def hamming_distance(codes_a: jax.Array, codes_b: jax.Array) -> jax.Array:
     return lax.population_count(codes_a ^ codes_b).astype(jnp.int32).sum(axis=0)
 
 
-def _shift_right(x: jax.Array, d: jax.Array, pad: int) -> jax.Array:
-    """``out[..., x] = in[..., x - d]`` for traced ``0 <= d <= pad`` (columns x < d: edge value)."""
-    widths = [(0, 0)] * (x.ndim - 1) + [(pad, 0)]
-    padded = jnp.pad(x, widths, mode="edge")
-    return lax.dynamic_slice_in_dim(padded, pad - d, x.shape[-1], axis=x.ndim - 1)
+class MatchingFeatures(NamedTuple):
+    """Per-image features the cost slices compare (computed once per pair).
+
+    Attributes
+    ----------
+    left, right : float32 (C, H, W)
+        Colour channels first.
+    gradient_left, gradient_right : float32 (H, W)
+        Sobel gradient magnitudes.
+    census_left, census_right : uint32 (n_words, H, W)
+        Packed census codes.
+    n_bits : int
+        Census bits (window size - 1).
+    """
+
+    left: jax.Array
+    right: jax.Array
+    gradient_left: jax.Array
+    gradient_right: jax.Array
+    census_left: jax.Array
+    census_right: jax.Array
+    n_bits: int
+
+
+def matching_features(
+    left: jax.Array, right: jax.Array, *, census_height: int = 7, census_width: int = 9
+) -> MatchingFeatures:
+    """Features of a pair for :func:`matching_cost`: colours, Sobel magnitudes, census codes.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    census_height, census_width : int, odd
+
+    Returns
+    -------
+    MatchingFeatures
+    """
+    _check_image("left", left)
+    _check_image("right", right)
+    check_same_shape("left", left, "right", right)
+    gray_l, gray_r = to_gray(left), to_gray(right)
+    return MatchingFeatures(
+        left=jnp.moveaxis(left, -1, 0),
+        right=jnp.moveaxis(right, -1, 0),
+        gradient_left=sobel_gradient_magnitude(gray_l),
+        gradient_right=sobel_gradient_magnitude(gray_r),
+        census_left=census_transform(gray_l, height=census_height, width=census_width),
+        census_right=census_transform(gray_r, height=census_height, width=census_width),
+        n_bits=census_height * census_width - 1,
+    )
+
+
+def matching_cost(
+    features: MatchingFeatures,
+    disparities: jax.Array,
+    *,
+    tad_weight,
+    gradient_weight,
+    census_weight,
+    tad_truncation,
+    gradient_truncation,
+) -> jax.Array:
+    """Cost slices of Eq. (5) for the given disparities (``jax.vmap`` over them).
+
+    Parameters
+    ----------
+    features : MatchingFeatures
+    disparities : int32 (K,)
+        Disparities to evaluate, each in [0, W); traced values are fine.
+    tad_weight, gradient_weight, census_weight, tad_truncation, gradient_truncation
+        As in :func:`cost_volume`.
+
+    Returns
+    -------
+    float32 (K, H, W)
+    """
+    check_rank("disparities", disparities, 1)
+    width = features.left.shape[-1]
+    pad = width - 1
+    columns = jnp.arange(width)
+    # Padded once, outside the vmap: each slice is then one dynamic slice of these.
+    padded = [
+        jnp.pad(x, [(0, 0)] * (x.ndim - 1) + [(pad, 0)], mode="edge")
+        for x in (features.right, features.gradient_right, features.census_right)
+    ]
+
+    def shifted(x, d):
+        return lax.dynamic_slice_in_dim(x, pad - d, width, axis=x.ndim - 1)
+
+    def cost_slice(d):
+        tad = jnp.abs(features.left - shifted(padded[0], d)).mean(axis=0)
+        gm = jnp.abs(features.gradient_left - shifted(padded[1], d))
+        ct = hamming_distance(features.census_left, shifted(padded[2], d)).astype(jnp.float32)
+        cost = (
+            tad_weight * jnp.minimum(tad, tad_truncation) / tad_truncation
+            + gradient_weight * jnp.minimum(gm, gradient_truncation) / gradient_truncation
+            + census_weight * ct / features.n_bits
+        )
+        outside = columns < d
+        return jnp.where(outside, tad_weight + gradient_weight + census_weight, cost)
+
+    return jax.vmap(cost_slice)(disparities).astype(jnp.float32)
 
 
 def cost_volume(
@@ -160,7 +260,7 @@ def cost_volume(
     where TAD (Eq. 2) is the channel mean of ``|I_L(p) - I_R(p - d)|``, GM (Eq. 3) the absolute
     difference of Sobel gradient magnitudes, truncated too (an untruncated GM lets outliers
     dominate), and CT (Eq. 4) the Hamming distance of census codes. Built with ``jax.vmap`` over
-    disparities.
+    disparities (:func:`matching_features` then :func:`matching_cost`).
 
     Parameters
     ----------
@@ -188,34 +288,16 @@ def cost_volume(
     ((3, 4, 16), 0.0)
     """
     _check_image("left", left)
-    _check_image("right", right)
-    check_same_shape("left", left, "right", right)
     check_positive_int("ndisp", ndisp)
-    height, width, _ = left.shape
-    if ndisp > width:
-        raise ValueError(f"ndisp must be <= image width {width}, got {ndisp}")
-
-    gray_l, gray_r = to_gray(left), to_gray(right)
-    grad_l, grad_r = sobel_gradient_magnitude(gray_l), sobel_gradient_magnitude(gray_r)
-    census_l = census_transform(gray_l, height=census_height, width=census_width)
-    census_r = census_transform(gray_r, height=census_height, width=census_width)
-    n_bits = census_height * census_width - 1
-    right_channels_first = jnp.moveaxis(right, -1, 0)
-    left_channels_first = jnp.moveaxis(left, -1, 0)
-    columns = jnp.arange(width)
-    pad = ndisp - 1
-
-    def cost_slice(d):
-        shifted = _shift_right(right_channels_first, d, pad)
-        tad = jnp.abs(left_channels_first - shifted).mean(axis=0)
-        gm = jnp.abs(grad_l - _shift_right(grad_r, d, pad))
-        ct = hamming_distance(census_l, _shift_right(census_r, d, pad)).astype(jnp.float32)
-        cost = (
-            tad_weight * jnp.minimum(tad, tad_truncation) / tad_truncation
-            + gradient_weight * jnp.minimum(gm, gradient_truncation) / gradient_truncation
-            + census_weight * ct / n_bits
-        )
-        outside = columns < d
-        return jnp.where(outside, tad_weight + gradient_weight + census_weight, cost)
-
-    return jax.vmap(cost_slice)(jnp.arange(ndisp)).astype(jnp.float32)
+    if ndisp > left.shape[1]:
+        raise ValueError(f"ndisp must be <= image width {left.shape[1]}, got {ndisp}")
+    features = matching_features(left, right, census_height=census_height, census_width=census_width)
+    return matching_cost(
+        features,
+        jnp.arange(ndisp),
+        tad_weight=tad_weight,
+        gradient_weight=gradient_weight,
+        census_weight=census_weight,
+        tad_truncation=tad_truncation,
+        gradient_truncation=gradient_truncation,
+    )

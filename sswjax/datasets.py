@@ -33,6 +33,9 @@ __all__ = [
 ]
 
 
+_SCENE_FILES = ("im0.png", "im1.png", "calib.txt")  # required in every scene folder
+
+
 class StereoScene(NamedTuple):
     """One rectified stereo pair with its calibration and optional ground truth."""
 
@@ -133,7 +136,8 @@ def scene_dirs(root: str | os.PathLike, *, split: str = "trainingQ") -> list[Pat
     """List the scene folders under a MiddEval3 directory or a split folder.
 
     Uses ``root / split`` if it exists, otherwise ``root`` itself. A scene folder is any
-    sub-folder that contains ``im0.png``.
+    sub-folder that contains ``im0.png``, ``im1.png`` or ``calib.txt`` (so that a scene with a
+    missing file is reported by :func:`load_scene` rather than silently skipped).
 
     Parameters
     ----------
@@ -161,9 +165,11 @@ def scene_dirs(root: str | os.PathLike, *, split: str = "trainingQ") -> list[Pat
     base = root / split if (root / split).is_dir() else root
     if not base.is_dir():
         raise InputError(f"data directory not found: {root}")
-    scenes = sorted(p for p in base.iterdir() if p.is_dir() and (p / "im0.png").is_file())
+    scenes = sorted(
+        p for p in base.iterdir() if p.is_dir() and any((p / f).is_file() for f in _SCENE_FILES)
+    )
     if not scenes:
-        raise InputError(f"no scene folders (with im0.png) in {base}")
+        raise InputError(f"no scene folders (with im0.png, im1.png or calib.txt) in {base}")
     return scenes
 
 
@@ -194,7 +200,7 @@ def load_scene(scene_dir: str | os.PathLike) -> StereoScene:
     """
     scene_dir = Path(scene_dir)
     name = scene_dir.name
-    for required in ("im0.png", "im1.png", "calib.txt"):
+    for required in _SCENE_FILES:
         if not (scene_dir / required).is_file():
             raise InputError(f"scene {name}: missing {required} in {scene_dir}")
     left = read_image(scene_dir / "im0.png")

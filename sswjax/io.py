@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import struct
 import tempfile
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -112,11 +114,63 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
 # ----------------------------------------------------------------------------- images
 
 
+def _decode_failure(path: Path, exc: BaseException) -> str:
+    """A specific one-line reason for an image file that cannot be decoded."""
+    text = _reason(exc)
+    try:
+        if path.is_file() and path.stat().st_size == 0:
+            return "the file is empty"
+    except OSError:
+        pass
+    if isinstance(exc, OSError) and exc.errno is not None:  # the system's reason, e.g.
+        return text  # "Permission denied", "Is a directory" (Pillow's own OSErrors have none)
+    if "could not find a backend" in text.lower():
+        return "not an image file (unknown format or corrupt header)"
+    if isinstance(exc, struct.error) or "truncat" in text.lower():
+        return "the file is truncated"
+    return f"the file is corrupt ({text})"
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _read_png_16bit_colour(path: Path) -> np.ndarray | None:
+    """Full-precision ``uint16`` pixels of a 16-bit colour (or gray+alpha) PNG, else ``None``.
+
+    Pillow decodes such files at 8 bits; OpenCV, when installed, keeps all 16. Returns
+    ``None`` for every other file, or when OpenCV is missing or fails.
+    """
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(26)
+    except OSError:
+        return None
+    # IHDR: bytes 24 and 25 are the bit depth and the colour type (2 RGB, 4 gray+alpha, 6 RGBA).
+    if len(head) < 26 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    if head[24] != 16 or head[25] not in (2, 4, 6):
+        return None
+    try:
+        import cv2
+    except ImportError:
+        return None
+    try:
+        decoded = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    except Exception:  # noqa: BLE001 - Pillow already decoded the file; keep its result
+        return None
+    if decoded is None or decoded.dtype != np.uint16 or decoded.ndim != 3:
+        return None
+    if head[25] == 4:  # gray+alpha: OpenCV replicates the gray into B, G and R
+        return decoded[:, :, 0]
+    return decoded[:, :, 2::-1]  # BGR(A) -> RGB
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file (PNG, JPEG, ...) as gray or RGB.
 
     Alpha channels are dropped (RGBA -> RGB, gray+alpha -> gray); a single channel
-    ``(H, W, 1)`` becomes ``(H, W)``.
+    ``(H, W, 1)`` becomes ``(H, W)``; 1-bit images become ``uint8`` 0/255. 16-bit PNGs keep
+    16 bits (colour ones need OpenCV, else they are read at 8 bits).
 
     Parameters
     ----------
@@ -131,7 +185,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     Raises
     ------
     InputError
-        If the file is missing, cannot be decoded, or is not a single gray/RGB(A) image.
+        If the file is missing, empty, not an image, truncated, corrupt, or not a single
+        gray/RGB(A) image.
 
     Examples
     --------
@@ -143,15 +198,26 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if not path.exists():
         raise InputError(f"image not found: {path}")
     try:
-        image = np.asarray(iio.imread(path))
+        with warnings.catch_warnings():
+            # imageio's search for a plugin that can read an unknown file imports legacy
+            # plugins, which warn about their own deprecation: noise for the user.
+            warnings.simplefilter("ignore", DeprecationWarning)
+            image = np.asarray(iio.imread(path))
     except Exception as exc:  # imageio/Pillow raise many types for corrupt files
-        raise InputError(f"cannot read image {path}: {_reason(exc)}") from exc
+        raise InputError(f"cannot read image {path}: {_decode_failure(path, exc)}") from exc
+    if image.ndim not in (2, 3) or image.size == 0:
+        raise InputError(f"image {path} must be a single gray or RGB(A) image, got array shape {image.shape}")
+    wide = _read_png_16bit_colour(path)
+    if wide is not None and wide.shape[:2] == image.shape[:2]:
+        image = wide
     if image.ndim == 3 and image.shape[2] in (1, 2):
         image = image[:, :, 0]
     elif image.ndim == 3 and image.shape[2] == 4:
         image = image[:, :, :3]
     if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
         raise InputError(f"image {path} must be gray or RGB(A), got array shape {image.shape}")
+    if image.dtype == bool:
+        image = image.astype(np.uint8) * np.uint8(255)
     return np.ascontiguousarray(image)
 
 

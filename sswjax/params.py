@@ -59,6 +59,9 @@ class StaticParams(NamedTuple):
         Radius of the side-window median applied to the disparity map (0 disables it).
     refine_iterations : int
         Passes of that side-window median.
+    disparity_chunk : int
+        0: the whole cost volume at once; K > 0: disparities K at a time with a running
+        minimum (same result, memory for ``K + 2`` slices instead of ``ndisp``).
     """
 
     census_height: int = 7
@@ -74,6 +77,7 @@ class StaticParams(NamedTuple):
     fill_radius: int = 2
     refine_radius: int = 2
     refine_iterations: int = 2
+    disparity_chunk: int = 0
 
 
 class DynamicParams(NamedTuple):
@@ -156,6 +160,7 @@ _INT_FIELDS = {
     "fill_radius": (0, 20),
     "refine_radius": (0, 20),
     "refine_iterations": (0, 20),
+    "disparity_chunk": (0, 100_000),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness")
@@ -192,6 +197,41 @@ def _check_value(name: str, value) -> Any:
         bound = "> 0" if name in _POSITIVE_FIELDS else ">= 0"
         raise ValueError(f"parameter {name} must be a finite number {bound}, got {value}")
     return value
+
+
+def check_params(params) -> Params:
+    """Validate a ``Params`` value given to the Python API; return it unchanged.
+
+    Applies the rules of :func:`params_from_dict` (types, ranges, odd census sizes, finite and
+    non-negative dynamic values) to a ``Params`` built in code, e.g. with :meth:`Params.replace`,
+    which does not check. Dynamic values may be Python or NumPy/JAX scalars; traced values
+    (inside ``jax.jit`` or ``jax.grad``) are not inspected.
+
+    Raises
+    ------
+    TypeError
+        If ``params`` is not a ``Params``.
+    ValueError
+        On the first bad field, with a one-line message naming it.
+    """
+    if not isinstance(params, Params):
+        raise TypeError(
+            f"params must be a sswjax.Params (see sswjax.load_params), got {type(params).__name__}"
+        )
+    for name, value in params.static._asdict().items():
+        _check_value(name, value)
+    for name, value in params.dynamic._asdict().items():
+        if isinstance(value, jax.core.Tracer):
+            continue
+        if not isinstance(value, (bool, int, float)) and hasattr(value, "shape"):
+            if tuple(value.shape) != ():
+                raise ValueError(f"parameter {name} must be a scalar, got shape {tuple(value.shape)}")
+            kind = getattr(getattr(value, "dtype", None), "kind", "")
+            if kind not in ("i", "u", "f"):
+                raise ValueError(f"parameter {name} must be a number, got {value!r}")
+            value = float(value)
+        _check_value(name, value)
+    return params
 
 
 def params_from_dict(data: Mapping) -> Params:

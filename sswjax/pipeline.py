@@ -10,6 +10,7 @@ validates them and returns a NumPy array.
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -17,12 +18,12 @@ import numpy as np
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
 from sswjax.aggregation import aggregate_cost
-from sswjax.cost import cost_volume
+from sswjax.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.filters import side_window_median_filter
 from sswjax.params import Params
 from sswjax.refinement import fill_invalid, left_right_consistency, right_cost_volume
 from sswjax.segments import slic, slic_grid_shape
-from sswjax.selection import subpixel_parabola, winner_takes_all
+from sswjax.selection import parabola_refine
 
 
 def _check_pair(left, right, ndisp: int) -> None:
@@ -63,8 +64,55 @@ def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
     return labels, ny * nx
 
 
+def _aggregate_slices(
+    features: MatchingFeatures,
+    left: jax.Array,
+    labels: jax.Array,
+    num_segments: int,
+    disparities: jax.Array,
+    params: Params,
+) -> jax.Array:
+    """Eq. (5) and (7) for the given disparities: cost slices, then their aggregation.
+
+    Every aggregator acts on each disparity slice independently (the guide and superpixels are
+    shared), so slices computed in chunks equal those of the whole volume.
+    """
+    static, dynamic = params.static, params.dynamic
+    cost = matching_cost(
+        features,
+        disparities,
+        tad_weight=dynamic.tad_weight,
+        gradient_weight=dynamic.gradient_weight,
+        census_weight=dynamic.census_weight,
+        tad_truncation=dynamic.tad_truncation,
+        gradient_truncation=dynamic.gradient_truncation,
+    )
+    return aggregate_cost(
+        cost,
+        left,
+        radius=static.aggregation_radius,
+        iterations=static.aggregation_iterations,
+        window_selection=static.window_selection,
+        method=static.aggregation,
+        labels=labels,
+        num_segments=num_segments,
+        segment_weight=dynamic.segment_weight,
+    )
+
+
+def _features(left, right, params: Params):
+    static = params.static
+    features = matching_features(
+        left, right, census_height=static.census_height, census_width=static.census_width
+    )
+    labels, num_segments = superpixels(left, params)
+    return features, labels, num_segments
+
+
 def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int) -> jax.Array:
     """Eq. (5)-(7): matching cost, superpixels and segment-side-window aggregation.
+
+    The whole volume at once: what the differentiable parameter search and analyses use.
 
     Parameters
     ----------
@@ -77,31 +125,88 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     float32 (ndisp, H, W), lower is better.
     """
     _check_pair(left, right, ndisp)
-    static, dynamic = params.static, params.dynamic
-    cost = cost_volume(
-        left,
-        right,
-        ndisp=ndisp,
-        tad_weight=dynamic.tad_weight,
-        gradient_weight=dynamic.gradient_weight,
-        census_weight=dynamic.census_weight,
-        tad_truncation=dynamic.tad_truncation,
-        gradient_truncation=dynamic.gradient_truncation,
-        census_height=static.census_height,
-        census_width=static.census_width,
+    features, labels, num_segments = _features(left, right, params)
+    return _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
+
+
+class Winners(NamedTuple):
+    """Running winner-takes-all state over disparity chunks (all arrays (H, W)).
+
+    ``disparity``/``cost``: the left view's best disparity (int32) and its cost; ``before`` and
+    ``after``: the costs at ``disparity - 1`` and ``+ 1`` (for the parabola); ``right_disparity``
+    and ``right_cost``: the same minimum for the right view, ``C_R(x, d) = C(x + d, d)``.
+    """
+
+    disparity: jax.Array
+    cost: jax.Array
+    before: jax.Array
+    after: jax.Array
+    right_disparity: jax.Array
+    right_cost: jax.Array
+
+
+def _no_winners(shape) -> Winners:
+    zeros, inf = jnp.zeros(shape, jnp.int32), jnp.full(shape, jnp.inf, jnp.float32)
+    return Winners(zeros, inf, inf, inf, zeros, inf)
+
+
+def _update_winners(state: Winners, slices: jax.Array, first, ndisp: int) -> Winners:
+    """Fold aggregated slices for d = first-1 .. first+K (one halo slice each side) into ``state``.
+
+    Disparities outside [0, ndisp) count as +inf. Ties keep the smaller disparity, as a single
+    ``argmin`` over the whole volume would.
+    """
+    count = slices.shape[0] - 2
+    halo_d = first - 1 + jnp.arange(count + 2)
+    slices = jnp.where(((halo_d >= 0) & (halo_d < ndisp))[:, None, None], slices, jnp.inf)
+    core = slices[1:-1]
+    index = jnp.argmin(core, axis=0)
+
+    def at(offset):
+        return jnp.take_along_axis(slices, (index + offset)[None], axis=0)[0]
+
+    best = at(1)
+    better = best < state.cost
+    right = right_cost_volume(core, disparities=halo_d[1:-1])
+    right_index = jnp.argmin(right, axis=0)
+    right_best = jnp.take_along_axis(right, right_index[None], axis=0)[0]
+    right_better = right_best < state.right_cost
+    return Winners(
+        disparity=jnp.where(better, first + index, state.disparity).astype(jnp.int32),
+        cost=jnp.where(better, best, state.cost),
+        before=jnp.where(better, at(0), state.before),
+        after=jnp.where(better, at(2), state.after),
+        right_disparity=jnp.where(right_better, first + right_index, state.right_disparity).astype(
+            jnp.int32
+        ),
+        right_cost=jnp.where(right_better, right_best, state.right_cost),
     )
-    labels, num_segments = superpixels(left, params)
-    return aggregate_cost(
-        cost,
-        left,
-        radius=static.aggregation_radius,
-        iterations=static.aggregation_iterations,
-        window_selection=static.window_selection,
-        method=static.aggregation,
-        labels=labels,
-        num_segments=num_segments,
-        segment_weight=dynamic.segment_weight,
-    )
+
+
+def _refine(winners: Winners, params: Params, ndisp: int) -> jax.Array:
+    """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
+    static = params.static
+    if static.subpixel:
+        disparity = parabola_refine(
+            winners.disparity, winners.before, winners.cost, winners.after, ndisp=ndisp
+        )
+    else:
+        disparity = winners.disparity.astype(jnp.float32)
+    if static.lr_check:
+        valid = left_right_consistency(
+            winners.disparity, winners.right_disparity, tolerance=params.dynamic.lr_tolerance
+        )
+        disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
+    if static.refine_radius > 0 and static.refine_iterations > 0:
+        disparity = side_window_median_filter(
+            disparity, radius=static.refine_radius, iterations=static.refine_iterations
+        )
+    return jnp.clip(disparity, 0, ndisp - 1)
+
+
+def _with_halo(cost: jax.Array) -> jax.Array:
+    inf = jnp.full((1,) + cost.shape[1:], jnp.inf, cost.dtype)
+    return jnp.concatenate([inf, cost, inf])
 
 
 def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
@@ -118,20 +223,10 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     float32 (H, W), dense, in [0, D - 1].
     """
     check_rank("cost", cost, 3)
-    static = params.static
-    winners = winner_takes_all(cost)
-    disparity = subpixel_parabola(cost, winners) if static.subpixel else winners.astype(jnp.float32)
-    if static.lr_check:
-        right_winners = winner_takes_all(right_cost_volume(cost))
-        valid = left_right_consistency(
-            winners, right_winners, tolerance=params.dynamic.lr_tolerance
-        )
-        disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
-    if static.refine_radius > 0 and static.refine_iterations > 0:
-        disparity = side_window_median_filter(
-            disparity, radius=static.refine_radius, iterations=static.refine_iterations
-        )
-    return jnp.clip(disparity, 0, cost.shape[0] - 1)
+    check_floating("cost", cost)
+    ndisp = cost.shape[0]
+    winners = _update_winners(_no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
+    return _refine(winners, params, ndisp)
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp",))
@@ -141,6 +236,10 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
     ``params.static`` is pytree metadata, so changing it (or the image size, or ``ndisp``)
     recompiles; ``params.dynamic`` is traced. ``jax.vmap`` batches it over pairs of one size:
     ``jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=n))(lefts, rights)``.
+
+    With ``params.static.disparity_chunk = K > 0`` the disparities are processed K at a time
+    (``lax.scan`` with a running minimum for both views), so memory holds a few
+    ``(K + 2, H, W)`` volumes instead of ``(ndisp, H, W)`` ones; the result is the same.
 
     Parameters
     ----------
@@ -152,7 +251,21 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
     -------
     float32 (H, W), dense disparities of the left view in pixels, in [0, ndisp - 1].
     """
-    return select_and_refine(aggregated_cost(left, right, params, ndisp=ndisp), params)
+    _check_pair(left, right, ndisp)
+    features, labels, num_segments = _features(left, right, params)
+    chunk = params.static.disparity_chunk
+    if chunk == 0 or chunk >= ndisp:
+        cost = _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
+        return select_and_refine(cost, params)
+
+    def step(state, first):
+        disparities = jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1)
+        slices = _aggregate_slices(features, left, labels, num_segments, disparities, params)
+        return _update_winners(state, slices, first, ndisp), None
+
+    firsts = jnp.arange(0, ndisp, chunk)
+    winners, _ = jax.lax.scan(step, _no_winners(left.shape[:2]), firsts)
+    return _refine(winners, params, ndisp)
 
 
 def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
@@ -176,6 +289,8 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
             raise ValueError(
                 f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}"
             )
+        if image.shape[0] == 0 or image.shape[1] == 0:
+            raise ValueError(f"{name} image is empty, got shape {image.shape}")
         image = image[..., :3]
         if image.dtype == np.uint8:
             image = image.astype(np.float32) / 255
@@ -232,13 +347,17 @@ def match(left, right, ndisp: int, params: Params | None = None) -> np.ndarray:
     """
     if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
         raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
+    from sswjax.params import check_params
+
+    params = Params() if params is None else check_params(params)
     left, right = prepare_pair(left, right)
     if not 1 <= ndisp < left.shape[1]:
         raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
-    params = Params() if params is None else params
-    min_side = max(params.static.census_height, params.static.census_width)
+    census = (params.static.census_width, params.static.census_height)
+    min_side = max(census)
     if min(left.shape[:2]) < min_side:
         raise ValueError(
-            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window"
+            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
+            f"{census[0]}x{census[1]}: both sides must be at least {min_side} pixels"
         )
     return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))

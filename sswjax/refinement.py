@@ -21,28 +21,34 @@ from sswjax._checks import check_floating, check_rank, check_same_shape
 from sswjax.filters import median_filter
 
 
-def right_cost_volume(cost: jax.Array) -> jax.Array:
+def right_cost_volume(cost: jax.Array, *, disparities: jax.Array | None = None) -> jax.Array:
     """The right view's cost volume from the left one: ``C_R[d, y, x] = C_L[d, y, x + d]``.
 
     Where ``x + d >= W`` no left pixel matches and the cost is ``+inf``.
 
     Parameters
     ----------
-    cost : float32 (D, H, W)
+    cost : float32 (K, H, W)
+        Left-view cost slices.
+    disparities : int32 (K,), optional
+        The disparity of each slice (traced values are fine); default ``arange(K)``.
 
     Returns
     -------
-    float32 (D, H, W)
+    float32 (K, H, W)
     """
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
-    ndisp, _, width = cost.shape
-    padded = jnp.pad(cost, ((0, 0), (0, 0), (0, ndisp)), constant_values=jnp.inf)
+    count, _, width = cost.shape
+    if disparities is None:
+        disparities = jnp.arange(count)
+    check_rank("disparities", disparities, 1)
+    padded = jnp.pad(cost, ((0, 0), (0, 0), (0, width)), constant_values=jnp.inf)
 
     def shift_left(slice_, d):
-        return lax.dynamic_slice_in_dim(slice_, d, width, axis=1)
+        return lax.dynamic_slice_in_dim(slice_, jnp.clip(d, 0, width), width, axis=1)
 
-    return jax.vmap(shift_left)(padded, jnp.arange(ndisp))
+    return jax.vmap(shift_left)(padded, disparities)
 
 
 def left_right_consistency(

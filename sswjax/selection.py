@@ -67,10 +67,30 @@ def subpixel_parabola(cost: jax.Array, disparity: jax.Array) -> jax.Array:
         index = jnp.clip(disparity + offset, 0, ndisp - 1)[None]
         return jnp.take_along_axis(cost, index, axis=0)[0]
 
-    left, centre, right = at(-1), at(0), at(1)
-    curvature = left - 2 * centre + right
+    return parabola_refine(disparity, at(-1), at(0), at(1), ndisp=ndisp)
+
+
+def parabola_refine(disparity, before, centre, after, *, ndisp: int) -> jax.Array:
+    """Sub-pixel disparity from the costs at ``d - 1``, ``d`` and ``d + 1`` of each winner ``d``.
+
+    The rule of :func:`subpixel_parabola`, for callers that tracked the three costs themselves
+    (the chunked pipeline).
+
+    Parameters
+    ----------
+    disparity : int32 (H, W)
+    before, centre, after : float32 (H, W)
+    ndisp : int
+        Size of the disparity range (winners at 0 and ndisp - 1 are not moved).
+
+    Returns
+    -------
+    float32 (H, W)
+    """
+    check_rank("disparity", disparity, 2)
+    curvature = before - 2 * centre + after
     inside = (disparity > 0) & (disparity < ndisp - 1) & (curvature > 0)
-    offset = jnp.where(inside, (left - right) / (2 * jnp.where(inside, curvature, 1.0)), 0.0)
+    offset = jnp.where(inside, (before - after) / (2 * jnp.where(inside, curvature, 1.0)), 0.0)
     return disparity.astype(jnp.float32) + jnp.clip(offset, -0.5, 0.5)
 
 

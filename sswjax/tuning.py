@@ -1,0 +1,253 @@
+"""Differentiable objective for the gradient-based parameter search (optax).
+
+The search runs the *same* functions as inference: :func:`sswjax.pipeline.aggregated_cost`
+(cost, SLIC, segment-side-window aggregation), then :func:`sswjax.selection.soft_argmin`
+in place of the winner-takes-all of :func:`sswjax.pipeline.select_and_refine`. The loss is a
+smooth L1 (Huber, delta 1 px) against the ground truth over valid non-occluded pixels.
+
+Reparametrisation (``raw`` is a dict of unconstrained float32 scalars):
+
+* ``tad_weight, gradient_weight, census_weight``: a softmax simplex of three logits, so
+  ``a + b + c = 1`` (the hand-set sum). WTA is invariant to the overall scale of the cost but
+  soft-argmin is not; fixing the sum and learning a separate ``temperature`` keeps the two apart.
+* ``tad_truncation``: sigmoid into ``TRUNCATION_RANGES["tad_truncation"]``;
+  ``gradient_truncation`` likewise.
+* ``segment_weight``: softplus (>= 0).
+* ``temperature`` of the soft-argmin: softplus (plus a floor). It is a search-only quantity, not
+  a :class:`~sswjax.params.Params` field.
+
+Not searched by gradient (no useful gradient on the soft path): ``slic_compactness`` (enters only
+the SLIC assignment argmin) and ``lr_tolerance`` (the left-right check is not on the soft path).
+They are kept at the values of the initial ``Params`` (or can be put in an outer grid), as are all
+static fields (radii, census window, superpixel count, iterations).
+
+Array conventions: images float32 ``(H, W, C)`` in [0, 1]; ground truth float32 ``(H, W)`` in
+pixels, non-finite = unknown; ``valid`` bool ``(H, W)`` (non-occluded with known ground truth).
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from sswjax.params import DynamicParams, Params, StaticParams
+from sswjax.pipeline import aggregated_cost
+from sswjax.selection import soft_argmin
+
+WEIGHTS = ("tad_weight", "gradient_weight", "census_weight")
+TRUNCATION_RANGES = {"tad_truncation": (0.002, 0.3), "gradient_truncation": (0.005, 1.0)}
+SEARCHED = WEIGHTS + tuple(TRUNCATION_RANGES) + ("segment_weight",)
+"""Dynamic fields searched by gradient."""
+FIXED = ("slic_compactness", "lr_tolerance")
+"""Dynamic fields with no useful gradient on the soft path: held fixed."""
+RAW_KEYS = ("weight_logits", "tad_truncation", "gradient_truncation", "segment_weight",
+            "temperature")
+MIN_TEMPERATURE = 1e-4
+HUBER_DELTA = 1.0
+
+
+def _softplus_inverse(y):
+    y = np.asarray(y, np.float64)
+    return np.where(y > 20, y, np.log(np.expm1(np.maximum(y, 1e-12))))
+
+
+def _logit(p):
+    p = np.clip(np.asarray(p, np.float64), 1e-6, 1 - 1e-6)
+    return np.log(p) - np.log1p(-p)
+
+
+def to_unconstrained(dynamic: DynamicParams, temperature: float = 0.02) -> dict:
+    """Raw (unconstrained) search variables of ``dynamic`` and a soft-argmin temperature.
+
+    The weights are normalised to sum to 1 (WTA does not change); their logits are centred.
+    """
+    weights = np.array([float(getattr(dynamic, k)) for k in WEIGHTS], np.float64)
+    if weights.sum() <= 0:
+        raise ValueError("tad, gradient and census weights must not all be zero")
+    logits = np.log(np.maximum(weights / weights.sum(), 1e-6))
+    raw = {"weight_logits": jnp.asarray(logits - logits.mean(), jnp.float32)}
+    for name, (low, high) in TRUNCATION_RANGES.items():
+        value = float(getattr(dynamic, name))
+        raw[name] = jnp.asarray(_logit((value - low) / (high - low)), jnp.float32)
+    raw["segment_weight"] = jnp.asarray(_softplus_inverse(float(dynamic.segment_weight)), jnp.float32)
+    raw["temperature"] = jnp.asarray(_softplus_inverse(temperature - MIN_TEMPERATURE), jnp.float32)
+    return raw
+
+
+def from_unconstrained(raw: dict, base: DynamicParams = DynamicParams()) -> tuple[DynamicParams, jax.Array]:
+    """Constrained ``DynamicParams`` (fields not searched taken from ``base``) and the temperature."""
+    weights = jax.nn.softmax(raw["weight_logits"])
+    values = dict(zip(WEIGHTS, (weights[0], weights[1], weights[2])))
+    for name, (low, high) in TRUNCATION_RANGES.items():
+        values[name] = low + (high - low) * jax.nn.sigmoid(raw[name])
+    values["segment_weight"] = jax.nn.softplus(raw["segment_weight"])
+    temperature = MIN_TEMPERATURE + jax.nn.softplus(raw["temperature"])
+    return base._replace(**values), temperature
+
+
+def raw_to_params(raw: dict, base: Params) -> Params:
+    """``base`` with its searched dynamic fields replaced by those of ``raw`` (plain floats)."""
+    dynamic, _ = from_unconstrained(raw, base.dynamic)
+    return base.replace(**{k: float(getattr(dynamic, k)) for k in SEARCHED})
+
+
+def valid_mask(ground_truth, nonocc, *, ndisp) -> jax.Array:
+    """Pixels the loss uses: known ground truth, non-occluded, inside the disparity range and
+    whose match ``x - gt`` falls inside the image (crop)."""
+    gt = jnp.asarray(ground_truth)
+    columns = jnp.arange(gt.shape[1])[None, :]
+    finite = jnp.isfinite(gt)
+    safe = jnp.where(finite, gt, 0.0)
+    return finite & nonocc & (safe >= 0) & (safe <= ndisp - 1) & (columns - safe >= 0)
+
+
+def soft_disparity(raw, left, right, *, static: StaticParams, ndisp: int, base: DynamicParams,
+                   scene_ndisp=None) -> jax.Array:
+    """Soft-argmin disparity ``(H, W)`` of the inference cost with the parameters of ``raw``.
+
+    ``scene_ndisp`` (traced scalar, optional) masks disparities ``>= scene_ndisp`` so that a
+    common, padded ``ndisp`` gives each scene its own range (the cost of every slice is computed
+    and aggregated independently, so the kept slices are those of the scene's own ``ndisp``).
+    """
+    dynamic, temperature = from_unconstrained(raw, base)
+    cost = aggregated_cost(left, right, Params(dynamic=dynamic, static=static), ndisp=ndisp)
+    if scene_ndisp is not None:
+        d = jnp.arange(ndisp)[:, None, None]
+        cost = jnp.where(d < scene_ndisp, cost, 1e4)
+    return soft_argmin(cost, temperature=temperature)
+
+
+def smooth_l1(error, delta: float = HUBER_DELTA):
+    """Huber loss of an error (quadratic below ``delta`` pixels, linear above)."""
+    a = jnp.abs(error)
+    return jnp.where(a < delta, 0.5 * a * a / delta, a - 0.5 * delta)
+
+
+def loss(raw, left, right, ground_truth, valid, *, static: StaticParams, ndisp: int,
+         base: DynamicParams = DynamicParams(), scene_ndisp=None):
+    """Mean smooth-L1 of the soft-argmin disparity over ``valid`` pixels of one crop.
+
+    Returns ``(loss, count)``; the temperature is part of ``raw``.
+    """
+    disparity = soft_disparity(raw, left, right, static=static, ndisp=ndisp, base=base,
+                               scene_ndisp=scene_ndisp)
+    gt = jnp.where(valid, ground_truth, 0.0)
+    per_pixel = jnp.where(valid, smooth_l1(disparity - gt), 0.0)
+    count = valid.sum()
+    return per_pixel.sum() / jnp.maximum(count, 1), count
+
+
+def batch_loss(raw, lefts, rights, gts, valids, scene_ndisps, *, static, ndisp, base):
+    """Pixel-weighted mean loss over a batch of crops (``jax.vmap``), and the pixel count."""
+    per_crop, counts = jax.vmap(
+        lambda l, r, g, v, n: loss(raw, l, r, g, v, static=static, ndisp=ndisp, base=base,
+                                   scene_ndisp=n)
+    )(lefts, rights, gts, valids, scene_ndisps)
+    total = jnp.maximum(counts.sum(), 1)
+    return (per_crop * counts).sum() / total
+
+
+def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: DynamicParams):
+    """Jitted ``(raw, opt_state, batch) -> (raw, opt_state, loss)`` with ``batch`` =
+    ``(lefts, rights, gts, valids, scene_ndisps)``."""
+
+    def objective(raw, batch):
+        return batch_loss(raw, *batch, static=static, ndisp=ndisp, base=base)
+
+    @jax.jit
+    def update_step(raw, opt_state, batch):
+        value, grads = jax.value_and_grad(objective)(raw, batch)
+        updates, opt_state = optimizer.update(grads, opt_state, raw)
+        return optax.apply_updates(raw, updates), opt_state, value
+
+    return update_step
+
+
+# --- crops ---------------------------------------------------------------------------------
+
+
+def random_crops(scenes, rng: np.random.Generator, *, batch: int, height: int, width: int):
+    """A batch of fixed-size random crops ``(lefts, rights, gts, valids, scene_ndisps)``.
+
+    ``scenes`` are :class:`~sswjax.datasets.StereoScene` with float32 images (see
+    :func:`prepare_scene`). Crops are drawn uniformly over scenes, then positions.
+    """
+    out = [[], [], [], [], []]
+    for _ in range(batch):
+        s = scenes[rng.integers(len(scenes))]
+        h, w = s.left.shape[:2]
+        y = int(rng.integers(0, h - height + 1))
+        x = int(rng.integers(0, w - width + 1))
+        sl = (slice(y, y + height), slice(x, x + width))
+        out[0].append(s.left[sl])
+        out[1].append(s.right[sl])
+        out[2].append(np.where(np.isfinite(s.ground_truth[sl]), s.ground_truth[sl], 0.0).astype(np.float32))
+        gt = s.ground_truth[sl]
+        finite = np.isfinite(gt)
+        safe = np.where(finite, gt, 0.0)
+        columns = np.arange(width)[None, :]
+        out[3].append(finite & (s.mask[sl] == 255) & (safe <= s.ndisp - 1) & (columns - safe >= 0))
+        out[4].append(s.ndisp)
+    return tuple(np.stack(a) for a in out[:4]) + (np.asarray(out[4], np.int32),)
+
+
+def prepare_scene(scene):
+    """A scene with float32 ``[0, 1]`` images, as the pipeline takes them."""
+    from sswjax.pipeline import prepare_pair
+
+    left, right = prepare_pair(scene.left, scene.right)
+    return scene._replace(left=left, right=right)
+
+
+def crop_segments(n_segments: int, crop_area: int, image_area: float) -> int:
+    """Superpixel count giving a crop the superpixel size of the full image."""
+    if n_segments == 0:
+        return 0
+    return max(1, int(round(n_segments * crop_area / image_area)))
+
+
+# --- checkpoints ---------------------------------------------------------------------------
+
+
+def save_checkpoint(path, *, raw, opt_state, step: int, rng: np.random.Generator, extra=None):
+    """Pickle raw params, optimizer state, step and RNG state (atomically)."""
+    from sswjax.io import atomic_output
+
+    state = {
+        "raw": jax.tree_util.tree_map(np.asarray, raw),
+        "opt_state": jax.tree_util.tree_map(np.asarray, opt_state),
+        "step": int(step),
+        "rng": rng.bit_generator.state,
+        "extra": extra or {},
+    }
+    with atomic_output(path) as tmp, open(tmp, "wb") as handle:
+        pickle.dump(state, handle)
+
+
+def load_checkpoint(path, *, opt_state_like):
+    """Inverse of :func:`save_checkpoint`: ``(raw, opt_state, step, rng, extra)``.
+
+    ``opt_state_like`` (e.g. ``optimizer.init(raw)``) gives the pytree structure to restore.
+    """
+    with open(path, "rb") as handle:
+        state = pickle.load(handle)
+    raw = {k: jnp.asarray(v) for k, v in state["raw"].items()}
+    leaves = jax.tree_util.tree_leaves(state["opt_state"])
+    opt_state = jax.tree_util.tree_unflatten(
+        jax.tree_util.tree_structure(opt_state_like), [jnp.asarray(x) for x in leaves]
+    )
+    rng = np.random.default_rng()
+    rng.bit_generator.state = state["rng"]
+    return raw, opt_state, state["step"], rng, state["extra"]
+
+
+__all__ = [
+    "FIXED", "SEARCHED", "TRUNCATION_RANGES", "batch_loss", "crop_segments", "from_unconstrained",
+    "load_checkpoint", "loss", "make_update_step", "prepare_scene", "random_crops",
+    "raw_to_params", "save_checkpoint", "smooth_l1", "soft_disparity", "to_unconstrained",
+    "valid_mask",
+]
