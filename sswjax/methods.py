@@ -15,7 +15,7 @@ import numpy as np
 
 from sswjax.params import Params
 from sswjax.peers import sgbm_disparity
-from sswjax.pipeline import match
+from sswjax.pipeline import ShapeBuckets, match
 
 SSW_VARIANTS: dict[str, dict] = {
     "ssw": {},
@@ -42,7 +42,9 @@ METHOD_NAMES = tuple(SSW_VARIANTS) + tuple(PEERS)
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
 
-def make_method(name: str, params: Params | None = None) -> Method:
+def make_method(
+    name: str, params: Params | None = None, *, buckets: ShapeBuckets | None = None
+) -> Method:
     """The method called ``name`` as ``(left, right, ndisp) -> disparity``.
 
     Parameters
@@ -51,6 +53,8 @@ def make_method(name: str, params: Params | None = None) -> Method:
         One of :data:`METHOD_NAMES`.
     params : Params, optional
         Base parameters of the SSW variants (default ``Params()``); ignored by peers.
+    buckets : ShapeBuckets, optional
+        Shape bucketing of the SSW variants (see :func:`sswjax.match`).
 
     Examples
     --------
@@ -65,7 +69,7 @@ def make_method(name: str, params: Params | None = None) -> Method:
     variant = (Params() if params is None else params).replace(**SSW_VARIANTS[name])
 
     def run(left, right, ndisp):
-        return match(left, right, ndisp, variant)
+        return match(left, right, ndisp, variant, buckets=buckets)
 
     return run
 

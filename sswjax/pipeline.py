@@ -150,7 +150,7 @@ def _no_winners(shape) -> Winners:
     return Winners(zeros, inf, inf, inf, zeros, inf)
 
 
-def _update_winners(state: Winners, slices: jax.Array, first, ndisp: int) -> Winners:
+def _update_winners(state: Winners, slices: jax.Array, first, ndisp) -> Winners:
     """Fold aggregated slices for d = first-1 .. first+K (one halo slice each side) into ``state``.
 
     Disparities outside [0, ndisp) count as +inf. Ties keep the smaller disparity, as a single
@@ -183,7 +183,7 @@ def _update_winners(state: Winners, slices: jax.Array, first, ndisp: int) -> Win
     )
 
 
-def _refine(winners: Winners, params: Params, ndisp: int) -> jax.Array:
+def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
     static = params.static
     if static.subpixel:
@@ -230,7 +230,9 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp",))
-def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int) -> jax.Array:
+def ssw_disparity(
+    left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None
+) -> jax.Array:
     """The whole SSW method as one jitted pure function.
 
     ``params.static`` is pytree metadata, so changing it (or the image size, or ``ndisp``)
@@ -246,26 +248,62 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
     left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
     params : Params
     ndisp : int, 1 <= ndisp < W
+        Size of the disparity volume (static: a new value recompiles).
+    valid_ndisp : int32 scalar, optional
+        Traced search range ``0 .. valid_ndisp - 1`` within the volume (default ``ndisp``):
+        shape bucketing runs a padded ``ndisp`` and passes the true one here.
 
     Returns
     -------
-    float32 (H, W), dense disparities of the left view in pixels, in [0, ndisp - 1].
+    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
     """
     _check_pair(left, right, ndisp)
+    limit = ndisp if valid_ndisp is None else valid_ndisp
     features, labels, num_segments = _features(left, right, params)
     chunk = params.static.disparity_chunk
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
-        return select_and_refine(cost, params)
+        winners = _update_winners(_no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
+        return _refine(winners, params, limit)
 
     def step(state, first):
         disparities = jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1)
         slices = _aggregate_slices(features, left, labels, num_segments, disparities, params)
-        return _update_winners(state, slices, first, ndisp), None
+        return _update_winners(state, slices, first, limit), None
 
     firsts = jnp.arange(0, ndisp, chunk)
     winners, _ = jax.lax.scan(step, _no_winners(left.shape[:2]), firsts)
-    return _refine(winners, params, ndisp)
+    return _refine(winners, params, limit)
+
+
+class ShapeBuckets(NamedTuple):
+    """Round image sizes and disparity counts up so that many pairs share one compiled graph.
+
+    Height and width are padded (edge-replicated, bottom and right) to multiples of
+    ``size_step`` and the volume to a multiple of ``ndisp_step`` disparities (the extra ones are
+    never chosen); results are cropped back. The defaults put the 15 MiddEval3 trainingQ pairs
+    into three shapes (512x512x96, 512x768x96, 512x768x192).
+    """
+
+    size_step: int = 256
+    ndisp_step: int = 96
+
+
+def bucket_shape(height: int, width: int, ndisp: int, buckets: ShapeBuckets) -> tuple[int, int, int]:
+    """Padded ``(height, width, ndisp)`` of a pair under ``buckets`` (``ndisp`` < width kept).
+
+    Examples
+    --------
+    >>> bucket_shape(375, 450, 64, ShapeBuckets())
+    (512, 512, 96)
+    """
+
+    def up(value, step):
+        return -(-value // step) * step
+
+    padded_ndisp = up(ndisp, buckets.ndisp_step)
+    padded_width = max(up(width, buckets.size_step), up(padded_ndisp + 1, buckets.size_step))
+    return up(height, buckets.size_step), padded_width, padded_ndisp
 
 
 def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
@@ -318,7 +356,9 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     return left, right
 
 
-def match(left, right, ndisp: int, params: Params | None = None) -> np.ndarray:
+def match(
+    left, right, ndisp: int, params: Params | None = None, *, buckets: ShapeBuckets | None = None
+) -> np.ndarray:
     """Dense disparity map of a rectified stereo pair with the SSW method.
 
     Parameters
@@ -329,6 +369,9 @@ def match(left, right, ndisp: int, params: Params | None = None) -> np.ndarray:
         Disparities searched: 0 .. ndisp - 1 (Middlebury ``calib.txt`` ``ndisp``); 1 <= ndisp < W.
     params : Params, optional
         Defaults to ``Params()``; see :func:`sswjax.load_params`.
+    buckets : ShapeBuckets, optional
+        Pad the pair to a bucketed shape so that pairs of nearby sizes reuse one compilation
+        (results near the bottom and right borders can change slightly); default: exact shape.
 
     Returns
     -------
@@ -360,4 +403,12 @@ def match(left, right, ndisp: int, params: Params | None = None) -> np.ndarray:
             f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
             f"{census[0]}x{census[1]}: both sides must be at least {min_side} pixels"
         )
-    return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
+    if buckets is None:
+        return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
+    height, width = left.shape[:2]
+    padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
+    pad = ((0, padded_h - height), (0, padded_w - width), (0, 0))
+    left, right = (np.pad(image, pad, mode="edge") for image in (left, right))
+    disparity = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=padded_ndisp,
+                              valid_ndisp=jnp.int32(ndisp))
+    return np.asarray(disparity)[:height, :width]

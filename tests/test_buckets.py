@@ -1,0 +1,70 @@
+"""Shape buckets (few compilations for many sizes) and the persistent compilation cache."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax.pipeline import ShapeBuckets, bucket_shape, ssw_disparity
+
+BUCKETS = ShapeBuckets(size_step=64, ndisp_step=16)
+
+
+def test_bucket_shape_rounds_up_and_keeps_ndisp_below_width():
+    assert bucket_shape(375, 450, 64, ShapeBuckets()) == (512, 512, 96)
+    assert bucket_shape(497, 741, 190, ShapeBuckets()) == (512, 768, 192)
+    assert bucket_shape(40, 60, 16, BUCKETS) == (64, 64, 16)
+    assert bucket_shape(30, 60, 70, BUCKETS) == (64, 128, 80)  # width grows to hold ndisp
+
+
+def test_trainingq_sizes_fall_into_three_buckets():
+    sizes = [(496, 718, 73), (277, 347, 64), (497, 659, 160), (497, 741, 70), (497, 741, 70),
+             (481, 707, 65), (481, 707, 65), (485, 735, 75), (476, 699, 83), (463, 680, 73),
+             (462, 681, 73), (486, 720, 65), (497, 738, 60), (375, 450, 64), (480, 722, 190)]
+    assert len({bucket_shape(*s, ShapeBuckets()) for s in sizes}) == 3
+
+
+def _pair(height, width, shift, seed):
+    rng = np.random.default_rng(seed)
+    right = (rng.random((height, width, 3)) * 255).astype(np.uint8)
+    return np.roll(right, shift, axis=1), right
+
+
+def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
+    params = sswjax.Params().replace(n_segments=20)
+    before = ssw_disparity._cache_size()
+    for (height, width), ndisp in (((40, 60), 12), ((50, 64), 9), ((64, 50), 16)):
+        left, right = _pair(height, width, 5, height)
+        disparity = sswjax.match(left, right, ndisp, params, buckets=BUCKETS)
+        assert disparity.shape == (height, width)
+        assert disparity.max() <= ndisp - 1
+        assert np.median(disparity[:, 12:]) == pytest.approx(5, abs=0.01)
+    assert ssw_disparity._cache_size() - before == 1
+
+
+def test_padded_disparities_are_never_chosen():
+    left, right = _pair(40, 60, 2, 1)
+    params = sswjax.Params().replace(n_segments=20)
+    disparity = sswjax.match(left, right, 3, params, buckets=BUCKETS)  # volume of 16, range 3
+    assert disparity.max() <= 2
+
+
+def test_second_process_reuses_the_compilation_cache(tmp_path):
+    script = (
+        "import numpy as np, sswjax\n"
+        "from sswjax.compilation import enable_compilation_cache\n"
+        "enable_compilation_cache()\n"
+        "r = np.random.default_rng(0).random((24, 40, 3)).astype(np.float32)\n"
+        "sswjax.match(np.roll(r, 2, axis=1), r, 6, sswjax.Params().replace(n_segments=8))\n"
+    )
+    env = dict(os.environ, SSWJAX_CACHE_DIR=str(tmp_path / "cache"))
+    subprocess.run([sys.executable, "-c", script], env=env, check=True)
+    entries = sorted(p.name for p in (tmp_path / "cache").iterdir())
+    assert any("ssw_disparity" in name for name in entries)
+    subprocess.run([sys.executable, "-c", script], env=env, check=True)
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == entries  # reused, not re-added
