@@ -91,3 +91,24 @@ def test_evaluate_missing_data_is_a_one_line_error(tmp_path, capsys):
 def test_evaluate_unknown_method(tiny_middeval3, capsys):
     assert main(["evaluate", "--data", str(tiny_middeval3), "--methods", "ssw,zzz"]) == 2
     assert "unknown method 'zzz'" in capsys.readouterr().err
+
+
+def test_sgbm_peer_is_dense_and_recovers_a_shift():
+    pytest.importorskip("cv2")
+    from sswjax.peers import sgbm_disparity
+
+    rng = np.random.default_rng(2)
+    right = (rng.random((40, 80, 3)) * 255).astype(np.uint8)
+    disparity = sgbm_disparity(np.roll(right, 6, axis=1), right, 16)
+    assert disparity.dtype == np.float32 and np.isfinite(disparity).all()
+    assert disparity.min() >= 0 and disparity.max() <= 15
+    assert np.median(disparity[:, 24:]) == pytest.approx(6, abs=0.25)
+
+
+def test_evaluate_figure(tiny_middeval3, tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "out"
+    assert main(["evaluate", "--data", str(tiny_middeval3), "--methods", "box", "-o", str(out),
+                 "--figure"]) == 0
+    image = iio.imread(out / "comparison.png")
+    assert image.ndim == 3 and image.shape[0] > 50
