@@ -1,0 +1,62 @@
+"""Peak memory of SSW by input scale and disparity chunk, each run in a fresh process.
+
+A Q pair (MiddEval3 trainingQ, default Motorcycle) is upsampled by ``--scale`` (2 = H, 4 = the
+full-resolution size, 2964 x 1988 with 280 disparities) and matched with
+``disparity_chunk`` = 0 (whole volume) or K; the child's peak RSS and wall time are reported.
+
+    python benchmarks/memory.py [--scene Motorcycle] [--scales 1 4] [--chunks 0 16]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+
+CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+import sswjax
+from sswjax.datasets import find_data_root, load_middeval3
+
+scene_name, scale, chunk = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]
+left, right = (np.repeat(np.repeat(im, scale, axis=0), scale, axis=1) for im in (scene.left, scene.right))
+params = sswjax.Params().replace(disparity_chunk=chunk)
+start = time.perf_counter()
+disparity = sswjax.match(left, right, scene.ndisp * scale, params)
+seconds = time.perf_counter() - start
+print(json.dumps({"shape": list(disparity.shape), "ndisp": scene.ndisp * scale, "seconds": seconds,
+                  "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))
+"""
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="Motorcycle")
+    parser.add_argument("--scales", type=int, nargs="+", default=(1, 4))
+    parser.add_argument("--chunks", type=int, nargs="+", default=(0, 16))
+    args = parser.parse_args()
+    print("| scale | W x H x D | disparity_chunk | first call s (compile + run) | peak RSS GB |")
+    print("|---|---|---|---|---|")
+    for scale in args.scales:
+        for chunk in args.chunks:
+            if scale >= 4 and chunk == 0:
+                print(f"| {scale} | | 0 | skipped: the whole volume needs > 20 GB | |")
+                continue
+            start = time.perf_counter()
+            run = subprocess.run([sys.executable, "-c", CHILD, args.scene, str(scale), str(chunk)],
+                                 capture_output=True, text=True)
+            if run.returncode != 0:
+                print(f"| {scale} | | {chunk} | failed: {run.stderr.strip().splitlines()[-1]} | |")
+                continue
+            result = json.loads(run.stdout.strip().splitlines()[-1])
+            h, w = result["shape"]
+            print(f"| {scale} | {w} x {h} x {result['ndisp']} | {chunk} | "
+                  f"{time.perf_counter() - start:.1f} | {result['peak_rss_gb']:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
