@@ -219,7 +219,8 @@ def check_params(params) -> Params:
             f"params must be a sswjax.Params (see sswjax.load_params), got {type(params).__name__}"
         )
     for name, value in params.static._asdict().items():
-        _check_value(name, value)
+        if name in _INT_FIELDS or name in _BOOL_FIELDS or name in ("aggregation", "window_selection"):
+            _check_value(name, value)
     for name, value in params.dynamic._asdict().items():
         if isinstance(value, jax.core.Tracer):
             continue
