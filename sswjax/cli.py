@@ -175,7 +175,10 @@ def cmd_evaluate(args) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if not methods:
         raise ValueError(f"no method given in --methods {args.methods!r}")
-    runners = {name: make_method(name, _params(args.params)) for name in methods}
+    from sswjax.pipeline import ShapeBuckets
+
+    buckets = ShapeBuckets() if args.bucket else None
+    runners = {name: make_method(name, _params(args.params), buckets=buckets) for name in methods}
     scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
     for attribute, file in (("ground_truth", "disp0GT.pfm"), ("mask", "mask0nocc.png")):
         lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
@@ -246,6 +249,9 @@ def cmd_download(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--no-cache", action="store_true",
+                        help="do not use the persistent compilation cache ($SSWJAX_CACHE_DIR, "
+                             "default ~/.cache/sswjax/xla)")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     match = commands.add_parser("match", help="disparity map of a rectified pair")
@@ -275,6 +281,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="folder for disparities (MiddEval3 layout), results.md, metrics.csv")
     evaluate.add_argument("--figure", action="store_true",
                           help="also write comparison.png (needs matplotlib)")
+    evaluate.add_argument("--bucket", action="store_true",
+                          help="pad pairs to a few bucketed shapes: fewer compilations (3 for "
+                               "trainingQ), slightly different results at the bottom/right borders")
     evaluate.add_argument("--resume", action="store_true",
                           help="continue an interrupted run: keep the scenes already in -o "
                                "(disparity and time files) instead of recomputing them")
@@ -295,6 +304,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv
+    if not args.no_cache:
+        from sswjax.compilation import enable_compilation_cache
+
+        enable_compilation_cache()
     try:
         return args.run(args)
     except (ValueError, TypeError, OSError) as error:

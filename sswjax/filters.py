@@ -32,7 +32,7 @@ SIDE_WINDOWS = (
     ("after", "after"),
 )
 SIDE_WINDOW_NAMES = ("L", "R", "U", "D", "NW", "NE", "SW", "SE")
-SUM_METHODS = ("slices", "cumsum")
+SUM_METHODS = ("slices", "cumsum", "reduce_window")
 
 
 def _check_map(name: str, x, radius: int) -> None:
@@ -60,6 +60,13 @@ def _extent_sums(padded: jax.Array, radius: int, axis: int, method: str) -> dict
         # sum of padded[a : b] = running[b] - running[a]
         before = take_running(running, 0, radius + 1, n, axis)
         after = take_running(running, radius, 2 * radius + 1, n, axis)
+    elif method == "reduce_window":
+        dims = [1] * padded.ndim
+        dims[axis] = radius + 1
+        # window sums of r + 1 samples starting at every position: sums[j] = padded[j : j + r + 1]
+        sums = jax.lax.reduce_window(padded, 0.0, jax.lax.add, tuple(dims), (1,) * padded.ndim, "VALID")
+        before = jax.lax.slice_in_dim(sums, 0, n, axis=axis)
+        after = jax.lax.slice_in_dim(sums, radius, radius + n, axis=axis)
     else:
         raise ValueError(f"method must be one of {SUM_METHODS}, got {method!r}")
     return {"before": before, "after": after, "full": before + after - take(radius, n)}
@@ -97,8 +104,10 @@ def side_window_means(x: jax.Array, *, radius: int, method: str = "slices") -> j
     ----------
     x : float32 (..., H, W)
     radius : int >= 1
-    method : {"slices", "cumsum"}
-        Sum of ``r + 1`` shifted slices, or differences of a running sum (O(1) in ``r``).
+    method : {"slices", "cumsum", "reduce_window"}
+        Sum of ``r + 1`` shifted slices, differences of a running sum (O(1) in ``r``), or XLA's
+        windowed reduction. On XLA CPU shifted slices measured fastest for r <= 9
+        (``benchmarks/box_sums.py``).
 
     Returns
     -------

@@ -129,7 +129,7 @@ def rng():
 # side-window means
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 @pytest.mark.parametrize("radius", [1, 2, 3])
 def test_side_window_means_2d(radius, method):
     x = np.random.default_rng(radius).random((9, 11)).astype(np.float32)
@@ -138,7 +138,7 @@ def test_side_window_means_2d(radius, method):
     np.testing.assert_allclose(ours, side_window_means_reference(x, radius), atol=1e-5, rtol=0)
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 @pytest.mark.parametrize("radius", [1, 2, 3])
 def test_side_window_means_batched(radius, method):
     x = np.random.default_rng(10 + radius).random((2, 9, 11)).astype(np.float32)
@@ -150,7 +150,7 @@ def test_side_window_means_batched(radius, method):
 def test_side_window_means_radius_larger_than_image():
     # radius beyond the image: everything comes from the edge replication
     x = np.random.default_rng(5).random((3, 4)).astype(np.float32)
-    for method in ("slices", "cumsum"):
+    for method in ("slices", "cumsum", "reduce_window"):
         ours = jitted(side_window_means, x, radius=5, method=method)
         np.testing.assert_allclose(ours, side_window_means_reference(x, 5), atol=1e-5, rtol=0)
 
@@ -164,7 +164,7 @@ def test_side_window_means_rejects_bad_method():
 # window selection
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 @pytest.mark.parametrize("channels", [None, 1, 3])
 def test_side_window_index(channels, method, rng):
     shape = (9, 11) if channels is None else (channels, 9, 11)
@@ -176,7 +176,7 @@ def test_side_window_index(channels, method, rng):
     assert len(np.unique(ours)) >= 6
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 def test_side_window_index_first_window_on_ties(method, rng):
     # a flat guide: all eight windows are equally close, the first (L) wins (zeros: every
     # window mean is exactly 0 whatever the rounding of 1 / count, so the distances tie)
@@ -189,7 +189,7 @@ def test_side_window_index_first_window_on_ties(method, rng):
     np.testing.assert_allclose(guided, side_window_means_reference(x, 2)[0], atol=1e-5, rtol=0)
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 def test_select_side_window_mean(method, rng):
     guide = rng.random((3, 9, 11)).astype(np.float32)
     x = rng.random((4, 9, 11)).astype(np.float32)
@@ -203,7 +203,7 @@ def test_select_side_window_mean(method, rng):
 # side-window box filter
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 def test_side_window_box_filter_per_slice(method, rng):
     x = rng.random((2, 9, 11)).astype(np.float32)
     ours = jitted(side_window_box_filter, x, radius=2, iterations=3, method=method)
@@ -213,7 +213,7 @@ def test_side_window_box_filter_per_slice(method, rng):
     np.testing.assert_allclose(ours, reference, atol=1e-5, rtol=0)
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 @pytest.mark.parametrize("guide_channels", [None, 3])
 def test_side_window_box_filter_guided(guide_channels, method, rng):
     shape = (9, 11) if guide_channels is None else (guide_channels, 9, 11)
@@ -241,7 +241,7 @@ def test_side_window_box_filter_zero_iterations_is_identity(rng):
     np.testing.assert_array_equal(np.asarray(side_window_box_filter(jnp.asarray(x), radius=2, iterations=0)), x)
 
 
-@pytest.mark.parametrize("method", ["slices", "cumsum"])
+@pytest.mark.parametrize("method", ["slices", "cumsum", "reduce_window"])
 def test_side_window_box_filter_preserves_step_edges(method):
     vertical = np.zeros((9, 11), np.float32)
     vertical[:, 5:] = 1.0
