@@ -203,7 +203,7 @@ def side_window_box_filter(
     radius : int >= 1
     iterations : int >= 0
     guide : float32 (C, H, W) or (H, W), optional
-    method : {"slices", "cumsum"}
+    method : {"slices", "cumsum", "reduce_window"}
 
     Returns
     -------

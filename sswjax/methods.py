@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from sswjax.params import Params
-from sswjax.peers import sgbm_disparity
+from sswjax.peers import pandora_disparity, sgbm_disparity
 from sswjax.pipeline import ShapeBuckets, match
 
 SSW_VARIANTS: dict[str, dict] = {
@@ -34,7 +34,10 @@ SSW_VARIANTS: dict[str, dict] = {
 }
 """Method name -> parameter changes applied on top of the user's parameters."""
 
-PEERS: dict[str, Callable[[np.ndarray, np.ndarray, int], np.ndarray]] = {"sgbm": sgbm_disparity}
+PEERS: dict[str, Callable[[np.ndarray, np.ndarray, int], np.ndarray]] = {
+    "sgbm": sgbm_disparity,
+    "pandora": pandora_disparity,
+}
 """Method name -> another project's matcher under our protocol (optional dependencies)."""
 
 METHOD_NAMES = tuple(SSW_VARIANTS) + tuple(PEERS)
