@@ -151,9 +151,11 @@ def batch_loss(raw, lefts, rights, gts, valids, scene_ndisps, *, static, ndisp, 
     return (per_crop * counts).sum() / total
 
 
-def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: DynamicParams):
+def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: DynamicParams,
+                     frozen: tuple[str, ...] = ()):
     """Jitted ``(raw, opt_state, batch) -> (raw, opt_state, loss)`` with ``batch`` =
-    ``(lefts, rights, gts, valids, scene_ndisps)``."""
+    ``(lefts, rights, gts, valids, scene_ndisps)``. Keys of ``raw`` in ``frozen`` get a zero
+    gradient (with Adam they then do not move)."""
 
     def objective(raw, batch):
         return batch_loss(raw, *batch, static=static, ndisp=ndisp, base=base)
@@ -161,6 +163,7 @@ def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: Dynam
     @jax.jit
     def update_step(raw, opt_state, batch):
         value, grads = jax.value_and_grad(objective)(raw, batch)
+        grads = {k: jnp.zeros_like(g) if k in frozen else g for k, g in grads.items()}
         updates, opt_state = optimizer.update(grads, opt_state, raw)
         return optax.apply_updates(raw, updates), opt_state, value
 
