@@ -1,0 +1,135 @@
+"""Tests of the differentiable search objective (sswjax.tuning): tiny synthetic crops only."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import pytest
+
+from sswjax import tuning
+from sswjax.params import DynamicParams, Params
+
+NDISP = 8
+STATIC = Params().static._replace(n_segments=8, slic_iterations=2, census_height=5, census_width=5,
+                                  aggregation_iterations=1, aggregation_radius=2)
+
+
+@pytest.fixture(scope="module")
+def batch():
+    """Two 24 x 48 crops: a textured right view shifted by 3 and 5 pixels, with noise."""
+    rng = np.random.default_rng(0)
+    lefts, rights, gts, valids = [], [], [], []
+    for shift in (3, 5):
+        base = rng.random((24, 48 + shift, 3)).astype(np.float32)
+        base = (base + np.roll(base, 1, axis=1)) / 2  # some spatial correlation
+        right = base[:, shift:]
+        left = base[:, :48]
+        left = np.clip(left + 0.01 * rng.standard_normal(left.shape), 0, 1).astype(np.float32)
+        gt = np.full((24, 48), float(shift), np.float32)
+        valid = np.asarray(tuning.valid_mask(gt, np.ones((24, 48), bool), ndisp=NDISP))
+        lefts.append(left), rights.append(right), gts.append(gt), valids.append(valid)
+    return (np.stack(lefts), np.stack(rights), np.stack(gts), np.stack(valids),
+            np.array([NDISP, NDISP], np.int32))
+
+
+@pytest.fixture(scope="module")
+def adam():
+    """Adam with a small step and its jitted update step (compiled once for the module)."""
+    optimizer = optax.adam(0.01)
+    step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams())
+    return optimizer, step
+
+
+def test_round_trip():
+    dynamic = DynamicParams(tad_weight=0.1, gradient_weight=0.3, census_weight=0.6,
+                            tad_truncation=0.05, gradient_truncation=0.2, segment_weight=0.7)
+    back, temperature = tuning.from_unconstrained(tuning.to_unconstrained(dynamic, 0.03), dynamic)
+    for name in tuning.SEARCHED:
+        assert float(getattr(back, name)) == pytest.approx(getattr(dynamic, name), rel=1e-4)
+    assert float(temperature) == pytest.approx(0.03, rel=1e-4)
+    for name in tuning.FIXED:
+        assert getattr(back, name) == getattr(dynamic, name)
+
+
+def test_weights_normalised_and_ranges():
+    raw = tuning.to_unconstrained(DynamicParams(tad_weight=1.0, gradient_weight=1.0, census_weight=2.0))
+    raw = {k: v + 50.0 for k, v in raw.items()}  # extreme values stay in range
+    dynamic, temperature = tuning.from_unconstrained(raw)
+    assert float(dynamic.tad_weight + dynamic.gradient_weight + dynamic.census_weight) == pytest.approx(1.0)
+    for name, (low, high) in tuning.TRUNCATION_RANGES.items():
+        assert low - 1e-6 <= float(getattr(dynamic, name)) <= high + 1e-6
+    assert float(temperature) > 0
+    params = tuning.raw_to_params(raw, Params())
+    assert isinstance(params.dynamic.tad_weight, float)
+
+
+def test_valid_mask_excludes_matches_outside():
+    gt = np.array([[0.0, 2.0, 2.0, np.inf, 9.0]], np.float32)
+    nonocc = np.array([[True, True, True, True, True]])
+    assert np.asarray(tuning.valid_mask(gt, nonocc, ndisp=8)).tolist() == [[True, False, True, False, False]]
+
+
+def test_loss_and_gradients_finite_nonzero(batch, adam):
+    """Through Adam's first step, -lr * g / (|g| + eps): finite iff g is, nonzero iff g is."""
+    optimizer, step = adam
+    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    new_raw, _, value = step(raw, optimizer.init(raw), batch)
+    assert np.isfinite(float(value)) and float(value) > 0
+    for key in tuning.RAW_KEYS:
+        moved = np.asarray(new_raw[key]) - np.asarray(raw[key])
+        assert np.all(np.isfinite(moved)), key
+        assert np.all(np.abs(moved) > 1e-3), key  # |g| >> eps
+
+
+def test_padded_ndisp_is_masked(batch):
+    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    left, right = batch[0][0], batch[1][0]
+    d = jax.jit(lambda r: tuning.soft_disparity(r, left, right, static=STATIC, ndisp=NDISP,
+                                                base=DynamicParams(), scene_ndisp=4))(raw)
+    assert float(jnp.max(d)) <= 3.0 + 1e-4
+
+
+def test_update_step_lowers_loss(batch, adam):
+    optimizer, step = adam
+    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    state = optimizer.init(raw)
+    new_raw, state, before = step(raw, state, batch)
+    _, _, after = step(new_raw, state, batch)  # the loss returned is at new_raw
+    assert np.isfinite(float(before)) and float(after) < float(before)
+
+
+def test_checkpoint_round_trip(tmp_path):
+    raw = tuning.to_unconstrained(DynamicParams())
+    optimizer = optax.adam(0.05)
+    state = optimizer.init(raw)
+    grads = jax.tree_util.tree_map(jnp.ones_like, raw)
+    updates, state = optimizer.update(grads, state, raw)
+    raw = optax.apply_updates(raw, updates)
+    rng = np.random.default_rng(3)
+    rng.random(5)
+    path = tmp_path / "ckpt.pkl"
+    tuning.save_checkpoint(path, raw=raw, opt_state=state, step=7, rng=rng, extra={"loss": [[1, 2.0]]})
+    raw2, state2, step2, rng2, extra = tuning.load_checkpoint(path, opt_state_like=optimizer.init(raw))
+    assert step2 == 7 and extra == {"loss": [[1, 2.0]]}
+    for a, b in zip(jax.tree_util.tree_leaves((raw, state)), jax.tree_util.tree_leaves((raw2, state2))):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert rng.random() == rng2.random()
+    # the restored optimizer state continues identically
+    u1, _ = optimizer.update(grads, state, raw)
+    u2, _ = optimizer.update(grads, state2, raw2)
+    for a, b in zip(jax.tree_util.tree_leaves(u1), jax.tree_util.tree_leaves(u2)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b))
+
+
+def test_random_crops_shapes():
+    from sswjax.datasets import StereoScene
+
+    rng = np.random.default_rng(0)
+    image = rng.random((30, 60, 3)).astype(np.float32)
+    gt = np.full((30, 60), 4.0, np.float32)
+    gt[0, 0] = np.inf
+    scene = StereoScene("x", image, image, 16, gt, np.full((30, 60), 255, np.uint8), None)
+    lefts, rights, gts, valids, nds = tuning.random_crops([scene], rng, batch=3, height=20, width=40)
+    assert lefts.shape == (3, 20, 40, 3) and gts.shape == (3, 20, 40) and valids.dtype == bool
+    assert np.all(np.isfinite(gts)) and nds.tolist() == [16, 16]  + [16]
+    assert not valids[:, :, :4].any()

@@ -1,0 +1,270 @@
+"""Gradient-based (optax) search of the continuous SSW parameters with leave-scenes-out CV.
+
+One command runs everything (resumable; re-running skips finished parts)::
+
+    python tuning/search.py --out tuning/runs/main
+
+Plan: the 15 trainingQ scenes are shuffled with ``--seed`` and split into ``--folds`` folds.
+For each fold the continuous parameters are searched on the other scenes (random fixed-size
+crops, soft-argmin, smooth L1; :mod:`sswjax.tuning`), then the full WTA pipeline is run on the
+held-out scenes with the searched and with the hand-set parameters. A final search on all 15
+scenes gives ``tuning/params/tuned.json``. Files in ``--out``: ``fold<k>/`` and ``final/``
+(``checkpoint.pkl``, ``log.json``, ``params.json``), ``eval_*.json`` (per-scene metrics),
+``results.json`` (CV table) and ``curves.png``.
+
+Crops use the scene's full disparity range. To compile once per shape, scenes are put in two
+buckets: ndisp <= 96 (padded ndisp 96, crops ``--crop`` x 128) and ndisp <= 192 (padded 192,
+crops ``--crop`` x 224); the padded disparities are masked out before the soft-argmin. Each step
+draws a bucket with probability proportional to its number of training scenes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+import optax
+from tqdm import tqdm
+
+import sswjax
+import sswjax.datasets
+from sswjax import tuning
+from sswjax.evaluation import evaluate_scenes, summary
+from sswjax.metrics import evaluate_disparity, weighted_average
+from sswjax.params import load_params, save_params
+from sswjax.pipeline import ssw_disparity
+
+ROOT = Path(__file__).resolve().parent
+BUCKETS = ((96, 128), (192, 224))  # (padded ndisp, crop width)
+DATE = "2026-11-22"
+
+
+def bucket_of(scene) -> int:
+    for i, (nd, _) in enumerate(BUCKETS):
+        if scene.ndisp <= nd:
+            return i
+    raise ValueError(f"scene {scene.name}: ndisp {scene.ndisp} > {BUCKETS[-1][0]}")
+
+
+def write_json(path, data):
+    from sswjax.io import atomic_output
+
+    with atomic_output(path) as tmp, open(tmp, "w") as handle:
+        json.dump(data, handle, indent=1)
+        handle.write("\n")
+
+
+def crop_wta_bad2(params, scenes, crops_by_bucket, static_by_bucket):
+    """Weighted-by-pixels bad 2.0 (%) of the full WTA pipeline on fixed validation crops."""
+    bad = total = 0
+    for b, crops in crops_by_bucket.items():
+        if crops is None:
+            continue
+        lefts, rights, gts, valids, _ = crops
+        p = params.replace(n_segments=static_by_bucket[b].n_segments)
+        nd = BUCKETS[b][0]
+        for i in range(len(lefts)):
+            d = np.asarray(ssw_disparity(lefts[i], rights[i], p, ndisp=nd))
+            err = np.abs(d - gts[i])[valids[i]]
+            bad += int((err > 2.0).sum())
+            total += err.size
+    return 100.0 * bad / max(total, 1)
+
+
+def run_search(train, val, out: Path, base, args, desc):
+    """Search on ``train`` scenes; log held-out crop WTA bad 2.0 on ``val`` (or train) scenes."""
+    out.mkdir(parents=True, exist_ok=True)
+    ckpt, log_path = out / "checkpoint.pkl", out / "log.json"
+    area = float(np.mean([s.left.shape[0] * s.left.shape[1] for s in train]))
+    statics = {
+        b: base.static._replace(n_segments=tuning.crop_segments(base.static.n_segments, args.crop * w, area))
+        for b, (_, w) in enumerate(BUCKETS)
+    }
+    by_bucket = {b: [s for s in train if bucket_of(s) == b] for b in range(len(BUCKETS))}
+    probs = np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float)
+    probs /= probs.sum()
+    optimizer = optax.adam(args.lr)
+    raw = tuning.to_unconstrained(base.dynamic, temperature=args.temperature)
+    opt_state = optimizer.init(raw)
+    rng = np.random.default_rng(args.seed)
+    log = {"train_scenes": [s.name for s in train], "val_scenes": [s.name for s in val],
+           "loss": [], "val": [], "seconds": 0.0}
+    step = 0
+    if ckpt.exists():
+        raw, opt_state, step, rng, log = tuning.load_checkpoint(ckpt, opt_state_like=opt_state)
+        print(f"[{desc}] resumed at step {step}", flush=True)
+    # Polyak (exponential moving) average of the raw iterates: the reported parameters
+    ema = {k: np.asarray(v) for k, v in (log.get("ema") or raw).items()}
+
+    def averaged():
+        return {k: np.asarray(v, np.float32) for k, v in ema.items()}
+
+    if step >= args.steps:
+        return tuning.raw_to_params(averaged(), base), log
+    # fixed validation crops (own RNG, so resuming does not change them)
+    vrng = np.random.default_rng(args.seed + 1000)
+    vcrops = {}
+    for b, (_, w) in enumerate(BUCKETS):
+        pool = [s for s in val if bucket_of(s) == b]
+        n = args.val_crops if b == 0 else max(1, args.val_crops // 4)
+        vcrops[b] = tuning.random_crops(pool, vrng, batch=n, height=args.crop, width=w) if pool else None
+    steps_fn = {b: tuning.make_update_step(optimizer, static=statics[b], ndisp=BUCKETS[b][0],
+                                           base=base.dynamic, frozen=tuple(args.freeze))
+                for b in by_bucket if by_bucket[b]}
+
+    def validate(at):
+        value = crop_wta_bad2(tuning.raw_to_params(averaged(), base), val, vcrops, statics)
+        log["val"].append([at, value])
+        return value
+
+    if not log["val"] or log["val"][-1][0] < step:
+        if step == 0:
+            validate(0)
+    bar = tqdm(total=args.steps, initial=step, desc=desc, unit="step")
+    start = time.perf_counter()
+    while step < args.steps:
+        b = int(rng.choice(len(BUCKETS), p=probs))
+        batch = tuning.random_crops(by_bucket[b], rng, batch=args.batch, height=args.crop,
+                                    width=BUCKETS[b][1])
+        raw, opt_state, value = steps_fn[b](raw, opt_state, batch)
+        step += 1
+        ema = {k: args.ema * ema[k] + (1 - args.ema) * np.asarray(raw[k]) for k in ema}
+        log["ema"] = {k: v.tolist() for k, v in ema.items()}
+        log["loss"].append([step, float(value), b])
+        bar.update(1)
+        bar.set_postfix(loss=f"{float(value):.3f}")
+        if step % args.val_every == 0 or step == args.steps:
+            v = validate(step)
+            bar.write(f"[{desc}] step {step} crop WTA bad2.0 {v:.2f}%")
+        if step % args.checkpoint_every == 0 or step == args.steps:
+            log["seconds"] += time.perf_counter() - start
+            start = time.perf_counter()
+            tuning.save_checkpoint(ckpt, raw=raw, opt_state=opt_state, step=step, rng=rng, extra=log)
+            write_json(log_path, log)
+    bar.close()
+    params = tuning.raw_to_params(averaged(), base)
+    _, temperature = tuning.from_unconstrained(averaged(), base.dynamic)
+    log["temperature"] = float(temperature)
+    write_json(log_path, log)
+    return params, log
+
+
+def evaluate(params, scenes, path: Path, desc):
+    """Per-scene metrics of the full WTA pipeline (cached in ``path``)."""
+    if path.exists():
+        return json.loads(path.read_text())
+    method = lambda l, r, n: sswjax.match(l, r, n, params)  # noqa: E731
+    print(f"evaluating {desc} on {len(scenes)} scenes", flush=True)
+    results = evaluate_scenes(method, scenes, progress=True)
+    data = {r.scene: r.metrics for r in results}
+    write_json(path, data)
+    return data
+
+
+def weighted(per_scene: dict) -> dict:
+    return {region: {k: weighted_average({s: m[region][k] for s, m in per_scene.items()})
+                     for k in ("bad2.0", "bad1.0", "bad0.5")} for region in ("nonocc", "all")}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=ROOT / "runs" / "main")
+    parser.add_argument("--steps", type=int, default=150, help="optimizer steps per search")
+    parser.add_argument("--batch", type=int, default=2, help="crops per step")
+    parser.add_argument("--crop", type=int, default=64, help="crop height (widths per bucket)")
+    parser.add_argument("--folds", type=int, default=3)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--lr", type=float, default=0.02)
+    parser.add_argument("--ema", type=float, default=0.95,
+                        help="decay of the moving average of the iterates (the result); 0 = last")
+    parser.add_argument("--temperature", type=float, default=0.02, help="initial soft-argmin temperature")
+    parser.add_argument("--freeze", nargs="*", default=[], choices=tuning.RAW_KEYS,
+                        help="raw variables kept at their initial value (e.g. weight_logits)")
+    parser.add_argument("--val-every", type=int, default=25)
+    parser.add_argument("--val-crops", type=int, default=4)
+    parser.add_argument("--checkpoint-every", type=int, default=10)
+    parser.add_argument("--init", type=Path, default=ROOT / "params" / "hand.json")
+    parser.add_argument("--no-final", action="store_true", help="skip the search on all scenes")
+    parser.add_argument("--write-tuned", type=Path, default=ROOT / "params" / "tuned.json")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue an existing --out (otherwise it must not hold a run)")
+    args = parser.parse_args(argv)
+    if (args.out / "config.json").exists() and not args.resume:
+        parser.error(f"{args.out} holds a run; pass --resume to continue it")
+    args.out.mkdir(parents=True, exist_ok=True)
+    command = "python tuning/search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+    config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}
+    config["command"] = command
+    if not (args.out / "config.json").exists():
+        write_json(args.out / "config.json", config)
+    t0 = time.perf_counter()
+
+    hand = load_params(args.init)
+    root = sswjax.datasets.find_data_root()
+    raw_scenes = sswjax.datasets.load_middeval3(root)
+    scenes = [tuning.prepare_scene(s) for s in raw_scenes]
+    names = [s.name for s in scenes]
+    order = np.random.default_rng(args.seed).permutation(len(scenes))
+    folds = [sorted(names[i] for i in order[k::args.folds]) for k in range(args.folds)]
+    print("folds:", folds, flush=True)
+
+    hand_eval = evaluate(hand, raw_scenes, args.out / "eval_hand.json", "hand")
+    searched_eval, fold_params = {}, []
+    for k, held in enumerate(folds):
+        train = [s for s in scenes if s.name not in held]
+        val = [s for s in scenes if s.name in held]
+        params, _ = run_search(train, val, args.out / f"fold{k}", hand, args, f"fold {k}")
+        save_params(args.out / f"fold{k}" / "params.json", params)
+        fold_params.append(params.to_dict()["dynamic"])
+        held_raw = [s for s in raw_scenes if s.name in held]
+        searched_eval.update(evaluate(params, held_raw, args.out / f"eval_fold{k}.json", f"fold {k}"))
+    cv = {"folds": folds, "hand": weighted({s: hand_eval[s] for s in searched_eval}),
+          "searched": weighted(searched_eval), "fold_params": fold_params,
+          "per_scene_bad2_nonocc": {s: [hand_eval[s]["nonocc"]["bad2.0"], searched_eval[s]["nonocc"]["bad2.0"]]
+                                     for s in searched_eval}}
+    write_json(args.out / "results.json", cv)
+    print(json.dumps({"hand": cv["hand"], "searched": cv["searched"]}, indent=1), flush=True)
+
+    if not args.no_final:
+        params, log = run_search(scenes, scenes, args.out / "final", hand, args, "final")
+        final_eval = evaluate(params, raw_scenes, args.out / "eval_final.json", "final (all scenes)")
+        cv["final_full_trainingQ"] = weighted(final_eval)
+        cv["hand_full_trainingQ"] = weighted(hand_eval)
+        cv["seconds"] = time.perf_counter() - t0 + 0.0
+        write_json(args.out / "results.json", cv)
+        provenance = {
+            "how": "optax adam search (moving average of the iterates) of the continuous parameters through soft-argmin on random "
+                   "crops (sswjax.tuning, tuning/search.py), from hand.json; static fields, "
+                   "slic_compactness and lr_tolerance kept as in hand.json",
+            "data": f"MiddEval3 trainingQ, 15 scenes ({root})",
+            "seed": args.seed,
+            "command": command,
+            "date": DATE,
+            "soft_argmin_temperature": log.get("temperature"),
+            "cv_folds": folds,
+            "cv_heldout_weighted_bad2_nonocc": {"hand": cv["hand"]["nonocc"]["bad2.0"],
+                                                "searched": cv["searched"]["nonocc"]["bad2.0"]},
+            "cv_heldout_weighted_bad2_all": {"hand": cv["hand"]["all"]["bad2.0"],
+                                             "searched": cv["searched"]["all"]["bad2.0"]},
+            "full_trainingQ_weighted_bad2": {"nonocc": cv["final_full_trainingQ"]["nonocc"]["bad2.0"],
+                                             "all": cv["final_full_trainingQ"]["all"]["bad2.0"]},
+        }
+        save_params(args.write_tuned, params, provenance=provenance)
+        print(f"wrote {args.write_tuned}", flush=True)
+    from plot import plot_run  # tuning/plot.py
+
+    plot_run(args.out, args.out / "curves.png")
+    print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
+    _ = (jax, evaluate_disparity, summary)
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))
+    main()
