@@ -83,6 +83,10 @@ class StaticParams(NamedTuple):
 class DynamicParams(NamedTuple):
     """Continuous fields: pytree leaves, traced by ``jit`` and searched by optax.
 
+    Defaults: ``tuning/params/tuned.json`` (the truncations and the segment weight found by the
+    optax search of ``tuning/search.py``, rounded to 4 digits; the weights and the rest as set by
+    hand in ``tuning/params/hand.json``).
+
     Attributes
     ----------
     tad_weight, gradient_weight, census_weight : float
@@ -102,9 +106,9 @@ class DynamicParams(NamedTuple):
     tad_weight: Any = 0.05
     gradient_weight: Any = 0.15
     census_weight: Any = 0.8
-    tad_truncation: Any = 0.03
-    gradient_truncation: Any = 0.1
-    segment_weight: Any = 0.5
+    tad_truncation: Any = 0.04222
+    gradient_truncation: Any = 0.01548
+    segment_weight: Any = 0.5997
     slic_compactness: Any = 10.0
     lr_tolerance: Any = 0.0
 
