@@ -4,7 +4,7 @@ Runs ``sswjax evaluate`` over MiddEval3 trainingQ with SSW, the paper's comparis
 (BF, GF, iGF, MF), a plain box, OpenCV SGBM and the SSW ablations, then draws a README-sized
 figure (a few scenes, the main methods) from the disparities it wrote.
 
-    python benchmarks/table1.py [--data DIR] [-o benchmarks/results/table1] [--resume]
+    python benchmarks/table1.py [--data DIR] [--params P.json] [-o benchmarks/results/table1]
 
 Needs the ``[bench]`` extra (OpenCV, matplotlib). About 20 minutes on a 2-core machine.
 """
@@ -50,6 +50,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path)
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results/table1"))
+    parser.add_argument("--params", type=Path, help="base parameters of the SSW variants")
     parser.add_argument("--skip-evaluate", action="store_true",
                         help="only redraw the figure from an earlier run's outputs")
     args = parser.parse_args()
@@ -57,6 +58,8 @@ def main() -> None:
         argv = ["evaluate", "--methods", ",".join(METHODS), "-o", str(args.output)]
         if args.data is not None:
             argv += ["--data", str(args.data)]
+        if args.params is not None:
+            argv += ["--params", str(args.params)]
         code = sswjax_main(argv)
         if code != 0:
             raise SystemExit(code)
