@@ -169,14 +169,13 @@ def cmd_evaluate(args) -> int:
     )
     from sswjax.io import atomic_output
     from sswjax.methods import make_method, submission_name
+    from sswjax.pipeline import ShapeBuckets
 
     if args.resume and args.output is None:
         raise ValueError("--resume needs -o/--output: the folder of the run to continue")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if not methods:
         raise ValueError(f"no method given in --methods {args.methods!r}")
-    from sswjax.pipeline import ShapeBuckets
-
     buckets = ShapeBuckets() if args.bucket else None
     runners = {name: make_method(name, _params(args.params), buckets=buckets) for name in methods}
     scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
