@@ -97,9 +97,18 @@ def summary(results: Sequence[SceneResult]) -> dict[str, dict[str, float]]:
     return out
 
 
+def _columns(results: Sequence[SceneResult]) -> list[tuple[str, str]]:
+    """(region, metric) columns: bad 2.0 / 1.0 / 0.5 for the regions every result has."""
+    regions = [reg for reg in REGIONS if all(reg in r.metrics for r in results)]
+    return [(region, f"bad{t}") for t in sorted(THRESHOLDS, reverse=True) for region in regions]
+
+
 def markdown_table(results: Sequence[SceneResult]) -> str:
-    """Per-scene bad 2.0 / 1.0 / 0.5 (nonocc and all) with the weighted average as last row."""
-    columns = [(region, f"bad{t}") for t in sorted(THRESHOLDS, reverse=True) for region in REGIONS]
+    """Per-scene bad 2.0 / 1.0 / 0.5 (nonocc and all) with the weighted average as last row.
+
+    Scenes without an occlusion mask have no "nonocc" region; the table then shows "all" only.
+    """
+    columns = _columns(results)
     header = "| scene | " + " | ".join(f"{k} {reg}" for reg, k in columns) + " | time s |"
     rule = "|---" * (len(columns) + 2) + "|"
     lines = [header, rule]
@@ -153,7 +162,7 @@ def table1_markdown(results: Mapping[str, Sequence[SceneResult]], *, threshold: 
 
 def summary_markdown(results: Mapping[str, Sequence[SceneResult]]) -> str:
     """One row per method: weighted bad 2.0 / 1.0 / 0.5 (nonocc and all) and median time."""
-    columns = [(region, f"bad{t}") for t in sorted(THRESHOLDS, reverse=True) for region in REGIONS]
+    columns = _columns([r for rows in results.values() for r in rows])
     lines = ["| method | " + " | ".join(f"{k} {reg}" for reg, k in columns) + " | median s |",
              "|---" * (len(columns) + 2) + "|"]
     for method, rows in results.items():

@@ -112,3 +112,14 @@ def test_evaluate_figure(tiny_middeval3, tmp_path):
                  "--figure"]) == 0
     image = iio.imread(out / "comparison.png")
     assert image.ndim == 3 and image.shape[0] > 50
+
+
+def test_tables_without_masks_show_all_only():
+    from sswjax.evaluation import markdown_table, summary_markdown
+
+    rows = [SceneResult(s, np.zeros((2, 2), np.float32),
+                        {"all": {"bad2.0": v, "bad1.0": v, "bad0.5": v}}, 0.1)
+            for s, v in (("Teddy", 10.0), ("Vintage", 40.0))]
+    table = markdown_table(rows)
+    assert "nonocc" not in table and "**20.00**" in table
+    assert "nonocc" not in summary_markdown({"ssw": rows})
