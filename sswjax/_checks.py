@@ -47,3 +47,10 @@ def check_positive_int(name: str, value, *, minimum: int = 1) -> None:
         raise ValueError(f"{name} must be an integer, got {value!r}")
     if value < minimum:
         raise ValueError(f"{name} must be >= {minimum}, got {value}")
+
+
+def check_map(name: str, x, radius: int) -> None:
+    """Filter inputs: a floating ``(..., H, W)`` array (rank 2 to 5) and an integer radius >= 1."""
+    check_rank(name, x, range(2, 6))
+    check_floating(name, x)
+    check_positive_int("radius", radius)

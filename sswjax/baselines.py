@@ -27,8 +27,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from sswjax._checks import check_floating, check_positive_int, check_rank
-from sswjax.filters import median_filter
+from sswjax._checks import check_floating, check_map, check_positive_int, check_rank
+from sswjax.filters import edge_pad, median_filter
 
 __all__ = [
     "BASELINE_AGGREGATORS",
@@ -43,12 +43,6 @@ __all__ = [
 
 # ---------------------------------------------------------------------------------------------
 # Entry checks and shared helpers.
-
-
-def _check_map(name: str, x, radius: int) -> None:
-    check_rank(name, x, range(2, 6))
-    check_floating(name, x)
-    check_positive_int("radius", radius)
 
 
 def _check_guide(guide, x, *, channels: tuple[int, ...] | None = None) -> None:
@@ -77,11 +71,6 @@ def _channels_first(guide: jax.Array) -> jax.Array:
     return jnp.moveaxis(g.astype(jnp.float32), -1, 0)
 
 
-def _edge_pad(x: jax.Array, radius: int) -> jax.Array:
-    """Edge-replicate ``radius`` samples on both sides of the last two axes."""
-    return jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(radius, radius), (radius, radius)], mode="edge")
-
-
 def _window_sum_1d(padded: jax.Array, radius: int, axis: int) -> jax.Array:
     """Sums over ``[i - r, i + r]`` along ``axis`` of an array padded by ``r`` at both ends.
 
@@ -99,7 +88,7 @@ def _window_sum_1d(padded: jax.Array, radius: int, axis: int) -> jax.Array:
 
 def _box_mean(x: jax.Array, radius: int) -> jax.Array:
     """Unchecked box mean of float32 (..., H, W), edge-replicated borders."""
-    padded = _edge_pad(x, radius)
+    padded = edge_pad(x, radius)
     rows = _window_sum_1d(padded, radius, x.ndim - 2)
     return _window_sum_1d(rows, radius, x.ndim - 1) / float((2 * radius + 1) ** 2)
 
@@ -132,7 +121,7 @@ def box_filter(x: jax.Array, *, radius: int) -> jax.Array:
     >>> box_filter(x, radius=1)[1].tolist()
     [0.0, 1.0, 1.0, 1.0, 0.0]
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     return _box_mean(x.astype(jnp.float32), radius)
 
 
@@ -266,7 +255,7 @@ def guided_filter(x: jax.Array, guide: jax.Array, *, radius: int = 9, eps=1e-4) 
     >>> [round(float(v), 3) for v in q[0, 3]]   # the step survives
     [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     _check_guide(guide, x, channels=(1, 3))
     _check_positive("eps", eps)
     return _guided_filter_fn(guide, radius, eps)(x.astype(jnp.float32))
@@ -306,7 +295,7 @@ def iterated_guided_filter(
     >>> [round(float(v), 2) for v in q[2]]   # blip spread out, edge kept
     [0.03, 0.03, 0.03, 0.02, 1.0, 1.0, 1.0, 1.0]
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     _check_guide(guide, x, channels=(1, 3))
     _check_positive("eps", eps)
     check_positive_int("iterations", iterations)
@@ -367,15 +356,15 @@ def bilateral_filter(
     >>> [round(float(v), 3) for v in q[2]]   # no mixing across the edge
     [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     _check_guide(guide, x)
     _check_positive("sigma_space", sigma_space)
     _check_positive("sigma_color", sigma_color)
     r = radius
     height, width = x.shape[-2:]
     g = _channels_first(guide)
-    g_padded = _edge_pad(g, r)
-    x_padded = _edge_pad(x.astype(jnp.float32), r)
+    g_padded = edge_pad(g, r)
+    x_padded = edge_pad(x.astype(jnp.float32), r)
     space_scale = -0.5 / jnp.square(jnp.asarray(sigma_space, jnp.float32))
     color_scale = -0.5 / jnp.square(jnp.asarray(sigma_color, jnp.float32))
     numerator = jnp.zeros(x.shape, jnp.float32)
@@ -422,7 +411,7 @@ def median_cost_filter(x: jax.Array, *, radius: int = 2) -> jax.Array:
     >>> float(median_cost_filter(x, radius=1)[1, 2, 2])
     1.0
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     return median_filter(x.astype(jnp.float32), radius=radius)
 
 

@@ -18,7 +18,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from sswjax._checks import check_floating, check_integer, check_positive_int, check_rank
+from sswjax._checks import check_integer, check_map, check_rank
 
 # (vertical extent, horizontal extent) of each window, in the order L, R, U, D, NW, NE, SW, SE.
 SIDE_WINDOWS = (
@@ -35,10 +35,9 @@ SIDE_WINDOW_NAMES = ("L", "R", "U", "D", "NW", "NE", "SW", "SE")
 SUM_METHODS = ("slices", "cumsum", "reduce_window")
 
 
-def _check_map(name: str, x, radius: int) -> None:
-    check_rank(name, x, range(2, 6))
-    check_floating(name, x)
-    check_positive_int("radius", radius)
+def edge_pad(x: jax.Array, radius: int) -> jax.Array:
+    """Edge-replicate ``radius`` samples on both sides of the last two axes of ``(..., H, W)``."""
+    return jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(radius, radius), (radius, radius)], mode="edge")
 
 
 def _extent_sums(padded: jax.Array, radius: int, axis: int, method: str) -> dict[str, jax.Array]:
@@ -82,8 +81,7 @@ def take_running(running: jax.Array, start: int, stop: int, n: int, axis: int) -
 def _side_window_mean_fn(x: jax.Array, radius: int, method: str) -> Callable[[int], jax.Array]:
     """Return ``mean(k)``: the mean of ``x`` over side window ``k`` (in ``SIDE_WINDOWS`` order)."""
     r = radius
-    pad = [(0, 0)] * (x.ndim - 2) + [(r, r), (r, r)]
-    padded = jnp.pad(x, pad, mode="edge")
+    padded = edge_pad(x, r)
     vertical = _extent_sums(padded, r, x.ndim - 2, method)  # (..., H, W + 2r) each
     count = {"before": r + 1, "after": r + 1, "full": 2 * r + 1}
     cache: dict[str, dict[str, jax.Array]] = {}
@@ -121,7 +119,7 @@ def side_window_means(x: jax.Array, *, radius: int, method: str = "slices") -> j
     >>> [float(v) for v in m[:, 2, 2]]   # at the column left of the edge: L and NW/SW are pure
     [0.0, 0.5, 0.3333333432674408, 0.3333333432674408, 0.0, 0.5, 0.0, 0.5]
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     mean = _side_window_mean_fn(x, radius, method)
     return jnp.stack([mean(k) for k in range(8)])
 
@@ -139,7 +137,7 @@ def side_window_index(guide: jax.Array, *, radius: int, method: str = "slices") 
     -------
     int32 (H, W)
     """
-    _check_map("guide", guide, radius)
+    check_map("guide", guide, radius)
     check_rank("guide", guide, (2, 3))
     g = guide if guide.ndim == 3 else guide[None]
     mean = _side_window_mean_fn(g, radius, method)
@@ -171,7 +169,7 @@ def select_side_window_mean(
     -------
     float32 (..., H, W)
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     check_rank("index", index, 2)
     check_integer("index", index)
     mean = _side_window_mean_fn(x, radius, method)
@@ -216,11 +214,11 @@ def side_window_box_filter(
     >>> bool((side_window_box_filter(step, radius=2, iterations=2) == step).all())  # edge kept
     True
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     if iterations < 0:
         raise ValueError(f"iterations must be >= 0, got {iterations}")
     if guide is not None:
-        _check_map("guide", guide, radius)
+        check_map("guide", guide, radius)
         check_rank("guide", guide, (2, 3))
         if guide.shape[-2:] != x.shape[-2:]:
             raise ValueError(f"guide size {guide.shape[-2:]} differs from x size {x.shape[-2:]}")
@@ -319,9 +317,9 @@ def median_filter(x: jax.Array, *, radius: int) -> jax.Array:
     -------
     float32, shape of ``x``
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     r = radius
-    padded = jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(r, r), (r, r)], mode="edge")
+    padded = edge_pad(x, r)
     offsets = range(-r, r + 1)
     return median_of_stack([_shifted(padded, r, dy, dx) for dy in offsets for dx in offsets])
 
@@ -357,10 +355,10 @@ def side_window_median_filter(x: jax.Array, *, radius: int, iterations: int = 1)
     >>> float(out[3, 1]), bool((out[:, 4:] == 5).all())
     (0.0, True)
     """
-    _check_map("x", x, radius)
+    check_map("x", x, radius)
     r = radius
     for _ in range(iterations):
-        padded = jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(r, r), (r, r)], mode="edge")
+        padded = edge_pad(x, r)
         best = best_distance = None
         for v, h in SIDE_WINDOWS:
             stack = [
