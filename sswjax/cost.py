@@ -133,7 +133,12 @@ def hamming_distance(codes_a: jax.Array, codes_b: jax.Array) -> jax.Array:
     check_same_shape("codes_a", codes_a, "codes_b", codes_b)
     if codes_a.dtype != jnp.uint32 or codes_b.dtype != jnp.uint32:
         raise TypeError(f"census codes must be uint32, got {codes_a.dtype} and {codes_b.dtype}")
-    return lax.population_count(codes_a ^ codes_b).astype(jnp.int32).sum(axis=0)
+    # Summed word by word: a reduction over the leading (word) axis of a vmapped volume ran
+    # as a slow strided reduce on XLA CPU.
+    return sum(
+        lax.population_count(codes_a[k] ^ codes_b[k]).astype(jnp.int32)
+        for k in range(codes_a.shape[0])
+    )
 
 
 class MatchingFeatures(NamedTuple):
@@ -227,7 +232,12 @@ def matching_cost(
         return lax.dynamic_slice_in_dim(x, pad - d, width, axis=x.ndim - 1)
 
     def cost_slice(d):
-        tad = jnp.abs(features.left - shifted(padded[0], d)).mean(axis=0)
+        # The channel mean is written as a sum of per-channel planes: a reduction over the
+        # leading channel axis of the vmapped (K, C, H, W) block ran 7x slower on XLA CPU.
+        channels = features.left.shape[0]
+        tad = sum(
+            jnp.abs(features.left[c] - shifted(padded[0][c], d)) for c in range(channels)
+        ) / channels
         gm = jnp.abs(features.gradient_left - shifted(padded[1], d))
         ct = hamming_distance(features.census_left, shifted(padded[2], d)).astype(jnp.float32)
         cost = (
