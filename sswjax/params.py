@@ -60,8 +60,9 @@ class StaticParams(NamedTuple):
     refine_iterations : int
         Passes of that side-window median.
     disparity_chunk : int
-        0: the whole cost volume at once; K > 0: disparities K at a time with a running
-        minimum (same result, memory for ``K + 2`` slices instead of ``ndisp``).
+        K > 0 (default 4): disparities K at a time with a running minimum, memory for about
+        ``3 K`` slices; 0: the whole cost volume at once. Same result either way; K = 4 was
+        fastest on XLA CPU (2x faster than the whole volume: the blocks stay in cache).
     """
 
     census_height: int = 7
@@ -77,7 +78,7 @@ class StaticParams(NamedTuple):
     fill_radius: int = 2
     refine_radius: int = 2
     refine_iterations: int = 2
-    disparity_chunk: int = 0
+    disparity_chunk: int = 4
 
 
 class DynamicParams(NamedTuple):

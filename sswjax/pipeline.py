@@ -21,9 +21,9 @@ from sswjax.aggregation import aggregate_cost
 from sswjax.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.filters import side_window_median_filter
 from sswjax.params import Params
-from sswjax.refinement import fill_invalid, left_right_consistency, right_cost_volume
+from sswjax.refinement import fill_invalid, left_right_consistency
 from sswjax.segments import slic, slic_grid_shape
-from sswjax.selection import parabola_refine
+from sswjax.selection import Winners, fold_winners, no_winners, parabola_refine, right_winners
 
 
 def _check_pair(left, right, ndisp: int) -> None:
@@ -129,60 +129,6 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
 
 
-class Winners(NamedTuple):
-    """Running winner-takes-all state over disparity chunks (all arrays (H, W)).
-
-    ``disparity``/``cost``: the left view's best disparity (int32) and its cost; ``before`` and
-    ``after``: the costs at ``disparity - 1`` and ``+ 1`` (for the parabola); ``right_disparity``
-    and ``right_cost``: the same minimum for the right view, ``C_R(x, d) = C(x + d, d)``.
-    """
-
-    disparity: jax.Array
-    cost: jax.Array
-    before: jax.Array
-    after: jax.Array
-    right_disparity: jax.Array
-    right_cost: jax.Array
-
-
-def _no_winners(shape) -> Winners:
-    zeros, inf = jnp.zeros(shape, jnp.int32), jnp.full(shape, jnp.inf, jnp.float32)
-    return Winners(zeros, inf, inf, inf, zeros, inf)
-
-
-def _update_winners(state: Winners, slices: jax.Array, first, ndisp) -> Winners:
-    """Fold aggregated slices for d = first-1 .. first+K (one halo slice each side) into ``state``.
-
-    Disparities outside [0, ndisp) count as +inf. Ties keep the smaller disparity, as a single
-    ``argmin`` over the whole volume would.
-    """
-    count = slices.shape[0] - 2
-    halo_d = first - 1 + jnp.arange(count + 2)
-    slices = jnp.where(((halo_d >= 0) & (halo_d < ndisp))[:, None, None], slices, jnp.inf)
-    core = slices[1:-1]
-    index = jnp.argmin(core, axis=0)
-
-    def at(offset):
-        return jnp.take_along_axis(slices, (index + offset)[None], axis=0)[0]
-
-    best = at(1)
-    better = best < state.cost
-    right = right_cost_volume(core, disparities=halo_d[1:-1])
-    right_index = jnp.argmin(right, axis=0)
-    right_best = jnp.take_along_axis(right, right_index[None], axis=0)[0]
-    right_better = right_best < state.right_cost
-    return Winners(
-        disparity=jnp.where(better, first + index, state.disparity).astype(jnp.int32),
-        cost=jnp.where(better, best, state.cost),
-        before=jnp.where(better, at(0), state.before),
-        after=jnp.where(better, at(2), state.after),
-        right_disparity=jnp.where(right_better, first + right_index, state.right_disparity).astype(
-            jnp.int32
-        ),
-        right_cost=jnp.where(right_better, right_best, state.right_cost),
-    )
-
-
 def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
     static = params.static
@@ -194,7 +140,7 @@ def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
         disparity = winners.disparity.astype(jnp.float32)
     if static.lr_check:
         valid = left_right_consistency(
-            winners.disparity, winners.right_disparity, tolerance=params.dynamic.lr_tolerance
+            winners.disparity, right_winners(winners)[0], tolerance=params.dynamic.lr_tolerance
         )
         disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
     if static.refine_radius > 0 and static.refine_iterations > 0:
@@ -205,8 +151,8 @@ def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
 
 
 def _with_halo(cost: jax.Array) -> jax.Array:
-    inf = jnp.full((1,) + cost.shape[1:], jnp.inf, cost.dtype)
-    return jnp.concatenate([inf, cost, inf])
+    """``(D + 2, H, W)``: the volume between two halo slices (masked to +inf by the fold)."""
+    return jnp.concatenate([cost[:1], cost, cost[-1:]])
 
 
 def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
@@ -225,7 +171,7 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
     ndisp = cost.shape[0]
-    winners = _update_winners(_no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
+    winners = fold_winners(no_winners(cost.shape[1:], ndisp=cost.shape[0]), _with_halo(cost), 0, limit=ndisp)
     return _refine(winners, params, ndisp)
 
 
@@ -239,9 +185,10 @@ def ssw_disparity(
     recompiles; ``params.dynamic`` is traced. ``jax.vmap`` batches it over pairs of one size:
     ``jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=n))(lefts, rights)``.
 
-    With ``params.static.disparity_chunk = K > 0`` the disparities are processed K at a time
-    (``lax.scan`` with a running minimum for both views), so memory holds a few
-    ``(K + 2, H, W)`` volumes instead of ``(ndisp, H, W)`` ones; the result is the same.
+    With ``params.static.disparity_chunk = K > 0`` (the default) the disparities are processed
+    K at a time (``lax.scan`` with a running minimum for both views), so memory holds a few
+    ``(K, H, W)`` blocks instead of ``(ndisp, H, W)`` volumes; the result is the same as with
+    ``K = 0`` (the whole volume at once).
 
     Parameters
     ----------
@@ -263,16 +210,32 @@ def ssw_disparity(
     chunk = params.static.disparity_chunk
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
-        winners = _update_winners(_no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
+        winners = fold_winners(no_winners(cost.shape[1:], ndisp=cost.shape[0]), _with_halo(cost), 0, limit=limit)
         return _refine(winners, params, limit)
 
-    def step(state, first):
-        disparities = jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1)
-        slices = _aggregate_slices(features, left, labels, num_segments, disparities, params)
-        return _update_winners(state, slices, first, limit), None
-
+    # Each step aggregates a block of K slices and folds the block of the previous step, which
+    # the loop carries: every slice is computed once, and the fold reads a materialised block
+    # (XLA would otherwise recompute the last filtering pass inside each of its consumers).
+    # The first step folds an empty block at disparities -K .. -1, hence ``origin=-chunk``.
+    height, width = left.shape[:2]
+    inf_plane = jnp.full((1, height, width), jnp.inf, jnp.float32)
     firsts = jnp.arange(0, ndisp, chunk)
-    winners, _ = jax.lax.scan(step, _no_winners(left.shape[:2]), firsts)
+
+    def fold(state, block, before, after, first):
+        halo = jnp.concatenate([before, block, after])
+        return fold_winners(state, halo, first, limit=limit, origin=-chunk)
+
+    def step(carry, first):
+        state, previous, before = carry
+        disparities = jnp.clip(first + jnp.arange(chunk), 0, ndisp - 1)
+        block = _aggregate_slices(features, left, labels, num_segments, disparities, params)
+        state = fold(state, previous, before, block[:1], first - chunk)
+        return (state, block, previous[-1:]), None
+
+    empty = jnp.full((chunk, height, width), jnp.inf, jnp.float32)
+    start = (no_winners((height, width), ndisp=(len(firsts) + 1) * chunk), empty, inf_plane)
+    (winners, last, before), _ = jax.lax.scan(step, start, firsts)
+    winners = fold(winners, last, before, inf_plane, firsts[-1])
     return _refine(winners, params, limit)
 
 
@@ -356,6 +319,33 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     return left, right
 
 
+def checked_pair(left, right, ndisp, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`prepare_pair` plus the checks of :func:`match` on ``ndisp`` and on the image size.
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
+    """
+    if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
+        raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
+    left, right = prepare_pair(left, right)
+    if not 1 <= ndisp < left.shape[1]:
+        raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
+    census = (params.static.census_width, params.static.census_height)
+    if min(left.shape[:2]) < max(census):
+        raise ValueError(
+            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
+            f"{census[0]}x{census[1]}: both sides must be at least {max(census)} pixels"
+        )
+    return left, right
+
+
+def pad_to_bucket(left, right, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Edge-replicate a pair ``(H, W, C)`` at the bottom and right up to ``height x width``."""
+    pad = ((0, height - left.shape[0]), (0, width - left.shape[1]), (0, 0))
+    return tuple(np.pad(image, pad, mode="edge") for image in (left, right))
+
+
 def match(
     left, right, ndisp: int, params: Params | None = None, *, buckets: ShapeBuckets | None = None
 ) -> np.ndarray:
@@ -388,27 +378,15 @@ def match(
     >>> round(float(np.median(d[:, 16:])), 2)
     5.0
     """
-    if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
-        raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
     from sswjax.params import check_params
 
     params = Params() if params is None else check_params(params)
-    left, right = prepare_pair(left, right)
-    if not 1 <= ndisp < left.shape[1]:
-        raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
-    census = (params.static.census_width, params.static.census_height)
-    min_side = max(census)
-    if min(left.shape[:2]) < min_side:
-        raise ValueError(
-            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
-            f"{census[0]}x{census[1]}: both sides must be at least {min_side} pixels"
-        )
+    left, right = checked_pair(left, right, ndisp, params)
     if buckets is None:
         return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
     height, width = left.shape[:2]
     padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
-    pad = ((0, padded_h - height), (0, padded_w - width), (0, 0))
-    left, right = (np.pad(image, pad, mode="edge") for image in (left, right))
+    left, right = pad_to_bucket(left, right, padded_h, padded_w)
     disparity = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=padded_ndisp,
                               valid_ndisp=jnp.int32(ndisp))
     return np.asarray(disparity)[:height, :width]
