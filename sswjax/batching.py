@@ -1,33 +1,99 @@
-"""Batches of equal-size pairs through ``jax.vmap``, sharded over all JAX devices.
+"""Pairs through ``jax.vmap``, the batch sharded over all JAX devices.
 
 Conventions: a batch is float32 ``(B, H, W, C)`` (C in {1, 3}, values in [0, 1]) for the left
 and right images; the result is float32 ``(B, H, W)``. The batch axis is split over a 1-D device
-mesh (``jax.sharding``), so the same code uses every CPU device
-(``XLA_FLAGS=--xla_force_host_platform_device_count=N``), GPU or TPU core; a batch whose size
-is not a multiple of the device count is padded with copies of its last pair, then cropped.
+mesh (``jax.sharding``, axis ``"batch"``: :func:`device_mesh`), so the same code uses every CPU
+device (``XLA_FLAGS=--xla_force_host_platform_device_count=N``), GPU or TPU core; a batch whose
+size is not a multiple of the device count is padded with copies of its last pair
+(:func:`pad_batch`), then cropped.
+
+Two entry points: :func:`match_batch` runs equal-size pairs in one call (``B / devices`` pairs
+per device); :func:`match_scenes` (and :func:`iter_match_scenes`, which yields each map as soon
+as it is done) runs pairs of different sizes, grouped by :func:`~sswjax.pipeline.bucket_shape`
+and padded as ``sswjax.match(..., buckets=)`` pads them, one pair per device per call, so a call
+never holds more than one cost volume per device.
 """
 
 from __future__ import annotations
 
 import functools
+import time
+from collections.abc import Iterator, Sequence
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from sswjax._checks import check_rank, check_same_shape
-from sswjax.params import Params
-from sswjax.pipeline import prepare_pair, ssw_disparity
+from sswjax.params import Params, check_params
+from sswjax.pipeline import ShapeBuckets, bucket_shape, checked_pair, pad_to_bucket, ssw_disparity
+
+BATCH_AXIS = "batch"
+"""Name of the mesh axis the batch is split over."""
+
+
+def device_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
+    """1-D mesh with axis :data:`BATCH_AXIS` over ``devices`` (default: all ``jax.devices()``).
+
+    Examples
+    --------
+    >>> device_mesh().axis_names
+    ('batch',)
+    """
+    devices = list(jax.devices() if devices is None else devices)
+    if not devices:
+        raise ValueError("devices is empty")
+    return Mesh(np.array(devices), (BATCH_AXIS,))
+
+
+def pad_batch(arrays: Sequence[np.ndarray], multiple: int) -> tuple[np.ndarray, ...]:
+    """Pad the leading axis of the arrays to a multiple of ``multiple`` with copies of the last row.
+
+    Parameters
+    ----------
+    arrays : sequence of numpy.ndarray (B, ...), one B for all, B >= 1
+    multiple : int >= 1
+
+    Returns
+    -------
+    tuple of numpy.ndarray (ceil(B / multiple) * multiple, ...)
+
+    Examples
+    --------
+    >>> pad_batch([np.arange(3)], 2)[0].tolist()
+    [0, 1, 2, 2]
+    """
+    arrays = [np.asarray(a) for a in arrays]
+    size = arrays[0].shape[0]
+    extra = -size % multiple
+    return tuple(np.concatenate([a, np.repeat(a[-1:], extra, axis=0)]) if extra else a
+                 for a in arrays)
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp",))
-def _batched(lefts, rights, params, *, ndisp):
-    return jax.vmap(lambda left, right: ssw_disparity(left, right, params, ndisp=ndisp))(lefts, rights)
+def _batched(lefts, rights, valid_ndisps, params, *, ndisp):
+    def one(left, right, valid_ndisp):
+        return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp)
+
+    return jax.vmap(one)(lefts, rights, valid_ndisps)
+
+
+def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: Mesh) -> np.ndarray:
+    """``ssw_disparity`` of a batch split over ``mesh`` (padded to a multiple of its size).
+
+    ``valid_ndisps``: int32 ``(B,)`` traced search ranges, or ``None`` for ``ndisp`` each.
+    """
+    size = len(lefts)
+    arrays = (lefts, rights) + (() if valid_ndisps is None else (valid_ndisps,))
+    sharding = NamedSharding(mesh, PartitionSpec(BATCH_AXIS))
+    sharded = jax.device_put(pad_batch(arrays, mesh.size), sharding)
+    if valid_ndisps is None:
+        sharded += (None,)
+    return np.asarray(_batched(*sharded, params, ndisp=ndisp))[:size]
 
 
 def match_batch(lefts, rights, ndisp: int, params: Params | None = None, *, devices=None) -> np.ndarray:
-    """Disparity maps of a batch of equal-size pairs, the batch split over ``devices``.
+    """Disparity maps of a batch of equal-size pairs, the batch split over ``devices`` in one call.
 
     Parameters
     ----------
@@ -53,21 +119,103 @@ def match_batch(lefts, rights, ndisp: int, params: Params | None = None, *, devi
     check_same_shape("lefts", lefts, "rights", rights)
     if lefts.shape[0] == 0:
         raise ValueError("the batch is empty")
-    pairs = [prepare_pair(left, right) for left, right in zip(lefts, rights)]
-    left_batch = np.stack([p[0] for p in pairs])
-    right_batch = np.stack([p[1] for p in pairs])
-    if not 1 <= ndisp < left_batch.shape[2]:
-        raise ValueError(f"ndisp must be in [1, {left_batch.shape[2] - 1}] for this width, got {ndisp}")
-    params = Params() if params is None else params
-    devices = list(jax.devices() if devices is None else devices)
-    size = left_batch.shape[0]
-    padded = -(-size // len(devices)) * len(devices)
-    if padded != size:
-        extra = padded - size
-        left_batch = np.concatenate([left_batch, np.repeat(left_batch[-1:], extra, axis=0)])
-        right_batch = np.concatenate([right_batch, np.repeat(right_batch[-1:], extra, axis=0)])
-    sharding = NamedSharding(Mesh(np.array(devices), ("batch",)), PartitionSpec("batch"))
-    left_batch = jax.device_put(jnp.asarray(left_batch), sharding)
-    right_batch = jax.device_put(jnp.asarray(right_batch), sharding)
-    disparities = _batched(left_batch, right_batch, params, ndisp=int(ndisp))
-    return np.asarray(disparities)[:size]
+    params = Params() if params is None else check_params(params)
+    pairs = [checked_pair(left, right, ndisp, params) for left, right in zip(lefts, rights)]
+    left_batch, right_batch = (np.stack(views) for views in zip(*pairs))
+    return _run_sharded(left_batch, right_batch, None, params, int(ndisp), device_mesh(devices))
+
+
+def iter_match_scenes(
+    pairs: Sequence[tuple[np.ndarray, np.ndarray]],
+    ndisps: Sequence[int],
+    params: Params | None = None,
+    *,
+    buckets: ShapeBuckets = ShapeBuckets(),
+    devices: Sequence[jax.Device] | None = None,
+) -> Iterator[tuple[int, np.ndarray, float]]:
+    """Disparity maps of pairs of different sizes, grouped by bucket, one pair per device per call.
+
+    Pairs are grouped by their padded shape (:func:`~sswjax.pipeline.bucket_shape` and the
+    channel count), groups in order of their first pair; each pair is edge-padded at the bottom
+    and right as ``sswjax.match(..., buckets=buckets)`` pads it, and its own ``ndisp`` is passed
+    as the traced ``valid_ndisp``. A group runs in steps of ``len(devices)`` pairs, one per
+    device (``jax.vmap`` over a batch sharded on :func:`device_mesh`); a short last step is
+    filled with copies of its last pair. Every input is checked before the first step.
+
+    Parameters
+    ----------
+    pairs : sequence of (left, right)
+        Each image array_like (H, W) or (H, W, 1|3|4), uint8, uint16 or float in [0, 1]; sizes
+        may differ between pairs.
+    ndisps : sequence of int
+        Each pair's search range 0 .. ndisp - 1, 1 <= ndisp < W.
+    params : Params, optional
+        Default ``Params()``.
+    buckets : ShapeBuckets
+        Shape bucketing (default ``ShapeBuckets()``); each distinct bucket compiles once.
+    devices : sequence of jax.Device, optional
+        Default: all of ``jax.devices()``.
+
+    Yields
+    ------
+    (int, numpy.ndarray float32 (H, W), float)
+        The pair's index in ``pairs``, its disparity map (equal to
+        ``sswjax.match(left, right, ndisp, params, buckets=buckets)``) and its share of the
+        step's wall time in seconds: the step's time (conversion, padding, transfers, the
+        sharded call, compilation on a bucket's first step) divided by the number of pairs of
+        the step (copies not counted). A step's maps are yielded together when it is done.
+    """
+    if len(pairs) != len(ndisps):
+        raise ValueError(f"got {len(pairs)} pairs but {len(ndisps)} ndisp values")
+    params = Params() if params is None else check_params(params)
+    mesh = device_mesh(devices)
+    groups: dict[tuple[int, ...], list[int]] = {}
+    for index, ((left, right), ndisp) in enumerate(zip(pairs, ndisps)):
+        left, _ = checked_pair(left, right, ndisp, params)
+        key = bucket_shape(*left.shape[:2], int(ndisp), buckets) + (left.shape[2],)
+        groups.setdefault(key, []).append(index)
+    for (height, width, ndisp, _), indices in groups.items():
+        for first in range(0, len(indices), mesh.size):
+            step = indices[first:first + mesh.size]
+            start = time.perf_counter()
+            views, sizes = [], []
+            for index in step:
+                left, right = checked_pair(*pairs[index], ndisps[index], params)
+                sizes.append(left.shape[:2])
+                views.append(list(pad_to_bucket(left, right, height, width)))
+            left_batch, right_batch = (np.stack(side) for side in zip(*views))
+            valid = np.array([ndisps[index] for index in step], np.int32)
+            disparities = _run_sharded(left_batch, right_batch, valid, params, ndisp, mesh)
+            seconds = (time.perf_counter() - start) / len(step)
+            for index, disparity, (h, w) in zip(step, disparities, sizes):
+                yield index, disparity[:h, :w], seconds
+
+
+def match_scenes(
+    pairs: Sequence[tuple[np.ndarray, np.ndarray]],
+    ndisps: Sequence[int],
+    params: Params | None = None,
+    *,
+    buckets: ShapeBuckets = ShapeBuckets(),
+    devices: Sequence[jax.Device] | None = None,
+) -> list[np.ndarray]:
+    """Disparity maps of pairs of different sizes, in the order of ``pairs``.
+
+    The maps of :func:`iter_match_scenes` (same parameters), each float32 ``(H, W)`` of its
+    pair and equal to ``sswjax.match(left, right, ndisp, params, buckets=buckets)``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> rights = [rng.random((h, w, 3), dtype=np.float32) for h, w in ((24, 40), (20, 44))]
+    >>> pairs = [(np.roll(r, 2, axis=1), r) for r in rights]
+    >>> maps = match_scenes(pairs, [8, 6], Params().replace(n_segments=8),
+    ...                     buckets=ShapeBuckets(size_step=32, ndisp_step=8))
+    >>> [m.shape for m in maps]
+    [(24, 40), (20, 44)]
+    """
+    maps: list[np.ndarray | None] = [None] * len(pairs)
+    done = iter_match_scenes(pairs, ndisps, params, buckets=buckets, devices=devices)
+    for index, disparity, _ in done:
+        maps[index] = disparity
+    return maps

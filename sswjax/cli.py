@@ -155,13 +155,15 @@ def cmd_evaluate(args) -> int:
 
     With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
     Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
-    disparities are read back and their metrics recomputed).
+    disparities are read back and their metrics recomputed). With ``--bucket`` the SSW methods
+    are :class:`~sswjax.methods.BucketedSSW`: their scenes run grouped by bucket, one pair per
+    JAX device per call, and a scene's time is its call's time divided by the pairs in it.
     """
     from tqdm import tqdm
 
     from sswjax.datasets import find_data_root, load_middeval3
     from sswjax.evaluation import (
-        evaluate_scene,
+        iter_evaluate_scenes,
         markdown_table,
         summary_markdown,
         table1_markdown,
@@ -191,24 +193,27 @@ def cmd_evaluate(args) -> int:
     try:
         for name, method in runners.items():
             tag = submission_name(name)
-            rows = results[name] = []
-            resumed = 0
+            rows = results[name] = [None] * len(scenes)
+            folders = [None if args.output is None else args.output / name / scene.name
+                       for scene in scenes]
             print(f"{name}:", file=sys.stderr)
-            with tqdm(scenes, desc="scenes", unit="scene", file=sys.stderr) as bar:
-                for scene in bar:
-                    folder = None if args.output is None else args.output / name / scene.name
-                    result = None
+            with tqdm(total=len(scenes), desc="scenes", unit="scene", file=sys.stderr) as bar:
+                for i, scene in enumerate(scenes):
                     if args.resume:
-                        result, note = _saved_scene_result(folder, tag, scene)
+                        rows[i], note = _saved_scene_result(folders[i], tag, scene)
                         if note:
                             bar.write(f"{name} {scene.name}: {note}", file=sys.stderr)
-                        resumed += result is not None
-                    if result is None:
-                        result = evaluate_scene(method, scene)
-                        if folder is not None:
-                            _write_scene_result(folder, tag, result)
-                    rows.append(result)
-                    saved += folder is not None
+                resumed = sum(row is not None for row in rows)
+                saved += resumed
+                bar.update(resumed)
+                pending = [i for i, row in enumerate(rows) if row is None]
+                for j, result in iter_evaluate_scenes(method, [scenes[i] for i in pending]):
+                    i = pending[j]
+                    if folders[i] is not None:
+                        _write_scene_result(folders[i], tag, result)
+                        saved += 1
+                    rows[i] = result
+                    bar.update(1)
             if args.resume:
                 print(f"{name}: resumed {resumed} of {len(scenes)} scenes from {args.output / name}",
                       file=sys.stderr)
@@ -282,7 +287,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="also write comparison.png (needs matplotlib)")
     evaluate.add_argument("--bucket", action="store_true",
                           help="pad pairs to a few bucketed shapes: fewer compilations (3 for "
-                               "trainingQ), slightly different results at the bottom/right borders")
+                               "trainingQ), slightly different results at the bottom/right "
+                               "borders; SSW methods then run one pair per JAX device per call, "
+                               "over all devices (a scene's time: its call's time / its pairs)")
     evaluate.add_argument("--resume", action="store_true",
                           help="continue an interrupted run: keep the scenes already in -o "
                                "(disparity and time files) instead of recomputing them")

@@ -1,17 +1,19 @@
 """Running a stereo method over MiddEval3 scenes and summarising it with the official weights.
 
 Conventions: a *method* is a callable ``(left, right, ndisp) -> float32 (H, W)`` disparity
-(NumPy in, NumPy out, images as read from disk); metrics are those of :mod:`sswjax.metrics`
-(percentages for bad-t and invalid, pixels for avgerr/rms/a90).
+(NumPy in, NumPy out, images as read from disk); a :class:`BatchedMethod` can also run many
+scenes together (e.g. grouped by shape and sharded over devices), and its per-scene time is
+then its share of a step (see :meth:`BatchedMethod.match_many`). Metrics are those of
+:mod:`sswjax.metrics` (percentages for bad-t and invalid, pixels for avgerr/rms/a90).
 """
 
 from __future__ import annotations
 
 import csv
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -50,6 +52,25 @@ resolution are not stated (we compare it with our bad 2.0 at Q)."""
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
 
+@runtime_checkable
+class BatchedMethod(Protocol):
+    """A method that can also run many pairs in one go: :func:`evaluate_scenes` then uses
+    ``match_many``; plain callables are run one scene at a time."""
+
+    def __call__(self, left: np.ndarray, right: np.ndarray, ndisp: int) -> np.ndarray:
+        """One pair, as a plain :data:`Method`."""
+
+    def match_many(
+        self, pairs: Sequence[tuple[np.ndarray, np.ndarray]], ndisps: Sequence[int]
+    ) -> Iterable[tuple[int, np.ndarray, float]]:
+        """Every pair, in any order: ``(index in pairs, float32 (H, W) disparity, seconds)``.
+
+        ``seconds`` is the pair's share of the wall time of the call that computed it (that
+        call's time divided by the number of pairs it computed), so the times of a run add up to
+        its total.
+        """
+
+
 class SceneResult(NamedTuple):
     """One method on one scene: its disparity, metrics per region and wall time (seconds)."""
 
@@ -59,29 +80,63 @@ class SceneResult(NamedTuple):
     seconds: float
 
 
-def evaluate_scene(method: Method, scene: StereoScene) -> SceneResult:
-    """Run ``method`` on one scene with ground truth and compute its metrics."""
+def _check_ground_truth(scene: StereoScene) -> None:
     if scene.ground_truth is None:
         raise ValueError(f"scene {scene.name} has no ground truth (disp0GT.pfm)")
-    start = time.perf_counter()
-    disparity = np.asarray(method(scene.left, scene.right, scene.ndisp), dtype=np.float32)
-    seconds = time.perf_counter() - start
+
+
+def _scored(scene: StereoScene, disparity, seconds: float) -> SceneResult:
+    disparity = np.asarray(disparity, dtype=np.float32)
     metrics = evaluate_disparity(
         disparity, scene.ground_truth, mask=scene.mask, ndisp=scene.ndisp, thresholds=THRESHOLDS
     )
     return SceneResult(scene.name, disparity, metrics, seconds)
 
 
-def evaluate_scenes(
-    method: Method, scenes: Iterable[StereoScene], *, progress: bool = False
-) -> list[SceneResult]:
-    """Evaluate ``method`` on every scene (with a tqdm progress bar when ``progress``)."""
-    scenes = list(scenes)
-    if progress:
-        from tqdm import tqdm
+def evaluate_scene(method: Method, scene: StereoScene) -> SceneResult:
+    """Run ``method`` on one scene with ground truth and compute its metrics."""
+    _check_ground_truth(scene)
+    start = time.perf_counter()
+    disparity = np.asarray(method(scene.left, scene.right, scene.ndisp), dtype=np.float32)
+    return _scored(scene, disparity, time.perf_counter() - start)
 
-        scenes = tqdm(scenes, desc="scenes", unit="scene")
-    return [evaluate_scene(method, scene) for scene in scenes]
+
+def iter_evaluate_scenes(
+    method: Method | BatchedMethod, scenes: Sequence[StereoScene]
+) -> Iterator[tuple[int, SceneResult]]:
+    """``(index in scenes, result)`` of every scene as soon as it is done.
+
+    A :class:`BatchedMethod` runs all scenes through its ``match_many`` (its order); any other
+    method one scene at a time, in order. Every scene must have ground truth (checked first).
+    """
+    scenes = list(scenes)
+    for scene in scenes:
+        _check_ground_truth(scene)
+    if not isinstance(method, BatchedMethod):
+        for index, scene in enumerate(scenes):
+            yield index, evaluate_scene(method, scene)
+        return
+    runs = method.match_many([(s.left, s.right) for s in scenes], [s.ndisp for s in scenes])
+    for index, disparity, seconds in runs:
+        yield index, _scored(scenes[index], disparity, seconds)
+
+
+def evaluate_scenes(
+    method: Method | BatchedMethod, scenes: Iterable[StereoScene], *, progress: bool = False
+) -> list[SceneResult]:
+    """Evaluate ``method`` on every scene, results in scene order (a tqdm bar when ``progress``).
+
+    See :func:`iter_evaluate_scenes` for how plain and batched methods are run.
+    """
+    from tqdm import tqdm
+
+    scenes = list(scenes)
+    results: list[SceneResult | None] = [None] * len(scenes)
+    with tqdm(total=len(scenes), desc="scenes", unit="scene", disable=not progress) as bar:
+        for index, result in iter_evaluate_scenes(method, scenes):
+            results[index] = result
+            bar.update(1)
+    return results
 
 
 def summary(results: Sequence[SceneResult]) -> dict[str, dict[str, float]]:

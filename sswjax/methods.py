@@ -4,15 +4,18 @@ Conventions: a method is a callable ``(left, right, ndisp) -> float32 (H, W)`` d
 taking images as read from disk (see :mod:`sswjax.evaluation`). SSW variants are the pipeline
 with some parameters changed (:data:`SSW_VARIANTS`); the baselines replace only the aggregation
 step (Table 1 of the paper: BF, GF, iGF, MF); peers are other projects' matchers
-(:mod:`sswjax.peers`).
+(:mod:`sswjax.peers`). With shape buckets an SSW variant is a :class:`BucketedSSW`, which
+:func:`sswjax.evaluation.evaluate_scenes` runs grouped by bucket and sharded over all JAX devices.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
+from sswjax.batching import iter_match_scenes
 from sswjax.params import Params
 from sswjax.peers import pandora_disparity, sgbm_disparity
 from sswjax.pipeline import ShapeBuckets, match
@@ -45,8 +48,36 @@ METHOD_NAMES = tuple(SSW_VARIANTS) + tuple(PEERS)
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
 
+@dataclasses.dataclass(frozen=True)
+class BucketedSSW:
+    """An SSW variant on bucketed shapes, a :class:`sswjax.evaluation.BatchedMethod`.
+
+    Called on one pair it is ``sswjax.match(left, right, ndisp, params, buckets=buckets)``;
+    :meth:`match_many` gives the same maps from
+    :func:`sswjax.batching.iter_match_scenes`: pairs grouped by bucket, one pair per device
+    per call, sharded over ``devices`` (default: all ``jax.devices()``).
+    """
+
+    params: Params
+    buckets: ShapeBuckets
+    devices: tuple | None = None
+
+    def __call__(self, left, right, ndisp: int) -> np.ndarray:
+        """float32 (H, W) disparity of one pair."""
+        return match(left, right, ndisp, self.params, buckets=self.buckets)
+
+    def match_many(
+        self, pairs: Sequence[tuple[np.ndarray, np.ndarray]], ndisps: Sequence[int]
+    ) -> Iterator[tuple[int, np.ndarray, float]]:
+        """``(index, float32 (H, W) disparity, seconds)`` per pair, a step's pairs at a time;
+        ``seconds`` is the step's wall time divided by its number of pairs."""
+        return iter_match_scenes(pairs, ndisps, self.params, buckets=self.buckets,
+                                 devices=self.devices)
+
+
 def make_method(
-    name: str, params: Params | None = None, *, buckets: ShapeBuckets | None = None
+    name: str, params: Params | None = None, *, buckets: ShapeBuckets | None = None,
+    devices=None,
 ) -> Method:
     """The method called ``name`` as ``(left, right, ndisp) -> disparity``.
 
@@ -57,7 +88,11 @@ def make_method(
     params : Params, optional
         Base parameters of the SSW variants (default ``Params()``); ignored by peers.
     buckets : ShapeBuckets, optional
-        Shape bucketing of the SSW variants (see :func:`sswjax.match`).
+        Shape bucketing of the SSW variants (see :func:`sswjax.match`); with it they are
+        :class:`BucketedSSW` (batched evaluation over ``devices``).
+    devices : sequence of jax.Device, optional
+        Devices of the batched evaluation (default: all ``jax.devices()``); used only with
+        ``buckets``.
 
     Examples
     --------
@@ -70,6 +105,8 @@ def make_method(
     if name not in SSW_VARIANTS:
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHOD_NAMES)}")
     variant = (Params() if params is None else params).replace(**SSW_VARIANTS[name])
+    if buckets is not None:
+        return BucketedSSW(variant, buckets, None if devices is None else tuple(devices))
 
     def run(left, right, ndisp):
         return match(left, right, ndisp, variant, buckets=buckets)

@@ -21,19 +21,27 @@ the SLIC assignment argmin) and ``lr_tolerance`` (the left-right check is not on
 They are kept at the values of the initial ``Params`` (or can be put in an outer grid), as are all
 static fields (radii, census window, superpixel count, iterations).
 
+Devices: :func:`make_update_step` splits each crop batch over a 1-D mesh of all JAX devices
+(``jax.sharding``; padded with zero-weight crops to a multiple of the device count) with the
+parameters and optimizer state replicated, so one step uses every CPU device, GPU or TPU core
+and gives the one-device result.
+
 Array conventions: images float32 ``(H, W, C)`` in [0, 1]; ground truth float32 ``(H, W)`` in
 pixels, non-finite = unknown; ``valid`` bool ``(H, W)`` (non-occluded with known ground truth).
 """
 
 from __future__ import annotations
 
+import functools
 import pickle
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+from jax.sharding import NamedSharding, PartitionSpec
 
+from sswjax.batching import BATCH_AXIS, device_mesh, pad_batch
 from sswjax.params import DynamicParams, Params, StaticParams
 from sswjax.pipeline import aggregated_cost
 from sswjax.selection import soft_argmin
@@ -151,21 +159,59 @@ def batch_loss(raw, lefts, rights, gts, valids, scene_ndisps, *, static, ndisp, 
     return (per_crop * counts).sum() / total
 
 
+def shard_crops(batch, mesh):
+    """A crop batch on ``mesh`` (:func:`sswjax.batching.device_mesh`), split on its batch axis.
+
+    A batch whose size is not a multiple of the device count is padded with copies of its last
+    crop whose ``valid`` mask is all False: they have a zero pixel count, so they change neither
+    :func:`batch_loss` nor its gradient.
+
+    Parameters
+    ----------
+    batch : (lefts, rights, gts, valids, scene_ndisps)
+        float32 (B, H, W, C), float32 (B, H, W, C), float32 (B, H, W), bool (B, H, W), int32 (B,).
+    mesh : jax.sharding.Mesh
+        1-D, axis ``"batch"``.
+
+    Returns
+    -------
+    tuple of jax.Array, the same five with B rounded up to a multiple of ``mesh.size``.
+    """
+    size = len(batch[0])
+    lefts, rights, gts, valids, scene_ndisps = pad_batch(batch, mesh.size)
+    valids = valids.copy()
+    valids[size:] = False
+    sharding = NamedSharding(mesh, PartitionSpec(BATCH_AXIS))
+    return jax.device_put((lefts, rights, gts, valids, scene_ndisps), sharding)
+
+
 def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: DynamicParams,
-                     frozen: tuple[str, ...] = ()):
-    """Jitted ``(raw, opt_state, batch) -> (raw, opt_state, loss)`` with ``batch`` =
-    ``(lefts, rights, gts, valids, scene_ndisps)``. Keys of ``raw`` in ``frozen`` get a zero
-    gradient (with Adam they then do not move)."""
+                     frozen: tuple[str, ...] = (), devices=None):
+    """``(raw, opt_state, batch) -> (raw, opt_state, loss)``: one jitted optax step, sharded.
+
+    ``batch`` = ``(lefts, rights, gts, valids, scene_ndisps)`` (see :func:`shard_crops`) is
+    split over a 1-D mesh of ``devices`` (default: all ``jax.devices()``) on its batch axis, any
+    size (padded with zero-weight crops to a multiple of the device count; a multiple wastes
+    nothing); ``raw`` and ``opt_state`` are replicated, so ``jit`` partitions the vmapped loss
+    and its gradient over the devices and all-reduces the sums. The returned ``raw`` and
+    ``opt_state`` are replicated. Keys of ``raw`` in ``frozen`` get a zero gradient (with Adam
+    they then do not move)."""
+    mesh = device_mesh(devices)
+    replicated = NamedSharding(mesh, PartitionSpec())
 
     def objective(raw, batch):
         return batch_loss(raw, *batch, static=static, ndisp=ndisp, base=base)
 
-    @jax.jit
-    def update_step(raw, opt_state, batch):
+    @functools.partial(jax.jit, out_shardings=replicated)
+    def sharded_step(raw, opt_state, batch):
         value, grads = jax.value_and_grad(objective)(raw, batch)
         grads = {k: jnp.zeros_like(g) if k in frozen else g for k, g in grads.items()}
         updates, opt_state = optimizer.update(grads, opt_state, raw)
         return optax.apply_updates(raw, updates), opt_state, value
+
+    def update_step(raw, opt_state, batch):
+        raw, opt_state = jax.device_put((raw, opt_state), replicated)
+        return sharded_step(raw, opt_state, shard_crops(batch, mesh))
 
     return update_step
 
@@ -251,6 +297,6 @@ def load_checkpoint(path, *, opt_state_like):
 __all__ = [
     "FIXED", "SEARCHED", "TRUNCATION_RANGES", "batch_loss", "crop_segments", "from_unconstrained",
     "load_checkpoint", "loss", "make_update_step", "prepare_scene", "random_crops",
-    "raw_to_params", "save_checkpoint", "smooth_l1", "soft_disparity", "to_unconstrained",
-    "valid_mask",
+    "raw_to_params", "save_checkpoint", "shard_crops", "smooth_l1", "soft_disparity",
+    "to_unconstrained", "valid_mask",
 ]

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
 
+import jax
 import numpy as np
+import pytest
 
 import sswjax
-from sswjax.batching import match_batch
+from sswjax.batching import iter_match_scenes, match_batch, match_scenes
+from sswjax.pipeline import bucket_shape
 
 PARAMS = sswjax.Params().replace(n_segments=16)
 
@@ -51,3 +55,105 @@ def test_two_devices_give_the_one_device_result(tmp_path):
         results[count] = np.load(path)
     # Same winners; sub-pixel values may differ in the last bits between the two compilations.
     np.testing.assert_allclose(results[1], results[2], rtol=0, atol=1e-5)
+
+
+# --- pairs of different sizes: grouped by bucket, one pair per device per call ---------------
+
+BUCKETS = sswjax.ShapeBuckets(size_step=32, ndisp_step=8)
+LIGHT = PARAMS.replace(slic_iterations=2, aggregation_iterations=1)  # quicker to compile
+# (height, width, ndisp, shift): buckets 32x64x8 (three pairs, not a multiple of 2 devices) and
+# 32x96x16 (two pairs), interleaved so that grouping reorders them.
+SCENES = ((28, 48, 6, 2), (28, 70, 12, 5), (32, 50, 8, 3), (30, 80, 16, 7), (26, 60, 5, 1))
+
+
+def _scenes():
+    rng = np.random.default_rng(5)
+    pairs = []
+    for height, width, _, shift in SCENES:
+        right = (rng.random((height, width, 3)) * 255).astype(np.uint8)
+        pairs.append((np.roll(right, shift, axis=1), right))
+    return pairs, [ndisp for _, _, ndisp, _ in SCENES]
+
+
+def _run_scenes(devices):
+    """The scenes' maps (in input order), their order of completion and, per sharded call,
+    [batch size, pairs per device]."""
+    import sswjax.batching as batching
+
+    pairs, ndisps = _scenes()
+    calls, inner = [], batching._batched
+
+    def spy(lefts, rights, valid_ndisps, params, *, ndisp):
+        calls.append([lefts.shape[0], lefts.sharding.shard_shape(lefts.shape)[0]])
+        return inner(lefts, rights, valid_ndisps, params, ndisp=ndisp)
+
+    batching._batched = spy
+    try:
+        done = list(iter_match_scenes(pairs, ndisps, LIGHT, buckets=BUCKETS, devices=devices))
+    finally:
+        batching._batched = inner
+    maps = [None] * len(pairs)
+    for index, disparity, _ in done:
+        maps[index] = disparity
+    return maps, [index for index, _, _ in done], calls
+
+
+@pytest.fixture(scope="module")
+def one_device():
+    return _run_scenes(jax.devices()[:1])
+
+
+def test_scenes_equal_bucketed_match_one_by_one(one_device):
+    maps, order, calls = one_device
+    assert len({bucket_shape(h, w, n, BUCKETS) for h, w, n, _ in SCENES}) == 2
+    assert order == [0, 2, 4, 1, 3]  # groups in order of their first pair
+    assert calls == [[1, 1]] * 5
+    pairs, ndisps = _scenes()
+    for (left, right), ndisp, disparity, (_, _, _, shift) in zip(pairs, ndisps, maps, SCENES):
+        expected = sswjax.match(left, right, ndisp, LIGHT, buckets=BUCKETS)
+        assert disparity.shape == left.shape[:2] and disparity.dtype == np.float32
+        np.testing.assert_allclose(disparity, expected, rtol=0, atol=1e-5)
+        assert disparity.max() <= ndisp - 1
+        assert np.median(disparity[:, 16:]) == pytest.approx(shift, abs=0.05)
+
+
+def test_scenes_check_every_pair_before_running(monkeypatch):
+    import sswjax.batching as batching
+
+    def never(*args, **kwargs):
+        raise AssertionError("a step ran before the last pair was checked")
+
+    monkeypatch.setattr(batching, "_batched", never)
+    pairs, ndisps = _scenes()
+    with pytest.raises(ValueError, match="ndisp must be in"):
+        match_scenes(pairs, ndisps[:-1] + [60], LIGHT, buckets=BUCKETS)
+    with pytest.raises(ValueError, match="5 pairs but 4"):
+        match_scenes(pairs, ndisps[:-1], LIGHT, buckets=BUCKETS)
+
+
+SCENES_SCRIPT = """
+import json, sys
+import jax, numpy as np
+sys.path.insert(0, {tests!r})
+from test_batching import _run_scenes
+maps, order, calls = _run_scenes(None)
+np.savez({path!r}, *maps)
+print(json.dumps({{"devices": len(jax.devices()), "order": order, "calls": calls}}))
+"""
+
+
+def test_scenes_on_two_devices_give_the_one_device_result(one_device, tmp_path):
+    path = tmp_path / "maps.npz"
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    script = SCENES_SCRIPT.format(tests=os.path.dirname(__file__), path=str(path))
+    run = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                         check=True)
+    report = json.loads(run.stdout.strip().splitlines()[-1])
+    assert report["devices"] == 2 and report["order"] == [0, 2, 4, 1, 3]
+    # one pair per device in every call; the 3-pair group's last step is filled with a copy
+    assert report["calls"] == [[2, 1]] * 3
+    with np.load(path) as saved:
+        two = [saved[f"arr_{i}"] for i in range(len(SCENES))]
+    for disparity_one, disparity_two in zip(one_device[0], two):
+        assert disparity_two.shape == disparity_one.shape
+        np.testing.assert_allclose(disparity_two, disparity_one, rtol=0, atol=1e-5)

@@ -8,6 +8,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
+from sswjax.batching import iter_match_scenes
 from sswjax.cli import main
 from sswjax.evaluation import PAPER_TABLE1, SceneResult, summary, table1_markdown
 from sswjax.io import read_pfm, write_pfm
@@ -123,3 +124,32 @@ def test_tables_without_masks_show_all_only():
     table = markdown_table(rows)
     assert "nonocc" not in table and "**20.00**" in table
     assert "nonocc" not in summary_markdown({"ssw": rows})
+
+
+def test_evaluate_bucket_runs_ssw_scenes_through_the_sharded_grouped_path(tiny_middeval3, tmp_path,
+                                                                          monkeypatch):
+    import sswjax
+    import sswjax.methods
+
+    params = sswjax.Params().replace(n_segments=16)
+    sswjax.save_params(tmp_path / "tiny.json", params)
+    batches = []
+
+    def spy(pairs, ndisps, *args, **kwargs):
+        batches.append(list(ndisps))
+        return iter_match_scenes(pairs, ndisps, *args, **kwargs)
+
+    monkeypatch.setattr(sswjax.methods, "iter_match_scenes", spy)
+    out = tmp_path / "out"
+    argv = ["evaluate", "--data", str(tiny_middeval3), "--methods", "ssw", "--params",
+            str(tmp_path / "tiny.json"), "--bucket", "-o", str(out)]
+    assert main(argv) == 0
+    assert batches == [[10, 10]]  # both scenes in one run of the grouped path (maps equal to
+    for scene, shift in (("Teddy", 3), ("Vintage", 5)):  # match's: tests/test_batching.py)
+        disparity = read_pfm(out / "ssw" / scene / "disp0SSW.pfm")
+        assert disparity.shape == (30, 48)
+        assert np.median(disparity[:, 12:]) == pytest.approx(shift, abs=0.05)
+        assert float((out / "ssw" / scene / "timeSSW.txt").read_text()) > 0
+    (out / "ssw" / "Vintage" / "timeSSW.txt").unlink()
+    assert main(argv + ["--resume"]) == 0
+    assert batches == [[10, 10], [10]]  # only the scene without a saved result ran again

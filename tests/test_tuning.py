@@ -1,5 +1,10 @@
 """Tests of the differentiable search objective (sswjax.tuning): tiny synthetic crops only."""
 
+import json
+import os
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -14,12 +19,11 @@ STATIC = Params().static._replace(n_segments=8, slic_iterations=2, census_height
                                   aggregation_iterations=1, aggregation_radius=2)
 
 
-@pytest.fixture(scope="module")
-def batch():
-    """Two 24 x 48 crops: a textured right view shifted by 3 and 5 pixels, with noise."""
+def _crops(shifts=(3, 5)):
+    """24 x 48 crops: a textured right view shifted by each of ``shifts`` pixels, with noise."""
     rng = np.random.default_rng(0)
     lefts, rights, gts, valids = [], [], [], []
-    for shift in (3, 5):
+    for shift in shifts:
         base = rng.random((24, 48 + shift, 3)).astype(np.float32)
         base = (base + np.roll(base, 1, axis=1)) / 2  # some spatial correlation
         right = base[:, shift:]
@@ -29,7 +33,13 @@ def batch():
         valid = np.asarray(tuning.valid_mask(gt, np.ones((24, 48), bool), ndisp=NDISP))
         lefts.append(left), rights.append(right), gts.append(gt), valids.append(valid)
     return (np.stack(lefts), np.stack(rights), np.stack(gts), np.stack(valids),
-            np.array([NDISP, NDISP], np.int32))
+            np.full(len(shifts), NDISP, np.int32))
+
+
+@pytest.fixture(scope="module")
+def batch():
+    """Two crops, shifted by 3 and 5 pixels."""
+    return _crops()
 
 
 @pytest.fixture(scope="module")
@@ -133,3 +143,51 @@ def test_random_crops_shapes():
     assert lefts.shape == (3, 20, 40, 3) and gts.shape == (3, 20, 40) and valids.dtype == bool
     assert np.all(np.isfinite(gts)) and nds.tolist() == [16, 16]  + [16]
     assert not valids[:, :, :4].any()
+
+
+def _two_steps(devices):
+    """Loss and raw parameters after each of two Adam steps on three crops (not a multiple of
+    two devices), sharded over ``devices``; and how :func:`tuning.shard_crops` splits them."""
+    from sswjax.batching import device_mesh
+
+    crops = _crops((3, 5, 2))
+    optimizer = optax.adam(0.05)
+    step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams(),
+                                   devices=devices)
+    raw = tuning.to_unconstrained(DynamicParams(), temperature=1.0)  # a loss far from 0
+    state, out = optimizer.init(raw), []
+    for _ in range(2):
+        raw, state, value = step(raw, state, crops)
+        out.append({"loss": float(value), **{k: np.asarray(v).tolist() for k, v in raw.items()}})
+    placed = tuning.shard_crops(crops, device_mesh(devices))
+    lefts = placed[0]
+    layout = {"size": lefts.shape[0], "per_device": lefts.sharding.shard_shape(lefts.shape)[0],
+              "padding_valid": bool(np.asarray(placed[3])[3:].any()),
+              "raw_devices": len(raw["temperature"].sharding.device_set)}
+    return out, layout
+
+
+TUNING_SCRIPT = """
+import json, sys
+sys.path.insert(0, {tests!r})
+from test_tuning import _two_steps
+print(json.dumps(_two_steps(None)))
+"""
+
+
+def test_sharded_step_same_on_one_and_two_devices():
+    one, layout_one = _two_steps(jax.devices()[:1])
+    assert layout_one == {"size": 3, "per_device": 3, "padding_valid": False, "raw_devices": 1}
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    script = TUNING_SCRIPT.format(tests=os.path.dirname(__file__))
+    run = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                         check=True)
+    two, layout_two = json.loads(run.stdout.strip().splitlines()[-1])
+    # padded to 4 with one zero-weight crop, 2 crops per device; parameters on both devices
+    assert layout_two == {"size": 4, "per_device": 2, "padding_valid": False, "raw_devices": 2}
+    for step_one, step_two in zip(one, two):
+        assert step_one.keys() == step_two.keys()
+        for key in step_one:
+            np.testing.assert_allclose(step_two[key], step_one[key], rtol=1e-5, atol=1e-7,
+                                       err_msg=key)
+    assert one[1]["loss"] != one[0]["loss"]  # the parameters moved

@@ -15,7 +15,10 @@ scenes gives ``tuning/params/tuned.json``. Files in ``--out``: ``fold<k>/`` and 
 Crops use the scene's full disparity range. To compile once per shape, scenes are put in two
 buckets: ndisp <= 96 (padded ndisp 96, crops ``--crop`` x 128) and ndisp <= 192 (padded 192,
 crops ``--crop`` x 224); the padded disparities are masked out before the soft-argmin. Each step
-draws a bucket with probability proportional to its number of training scenes.
+draws a bucket with probability proportional to its number of training scenes. Each step's
+crops are split over all JAX devices (:func:`sswjax.tuning.make_update_step`; on one device the
+step is the unsharded one, bit for bit); ``--batch`` a multiple of the device count wastes no
+device (another size is padded with zero-weight crops).
 """
 
 from __future__ import annotations
