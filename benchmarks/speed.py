@@ -1,19 +1,23 @@
 """Speed of SSW on MiddEval3 pairs against OpenCV StereoSGBM (3-way), measured in one run.
 
 For every scene: first-call time (compilation + one run), warm end-to-end time (median over
-repeats), per-stage warm times (cost, superpixels, aggregation, selection + refinement, each
-jitted alone), throughput in million disparity evaluations per second (W * H * ndisp / s) and
+repeats), per-stage warm times of the real compiled graph (cost, superpixels, aggregation,
+selection, refinement: a profiler trace attributes every XLA operation to its stage), throughput in million disparity evaluations per second (W * H * ndisp / s) and
 OpenCV SGBM's time on the same pair, SSW and SGBM runs alternating so that machine noise hits
 both. Writes Markdown and CSV; prints the Markdown.
 
-    python benchmarks/speed.py [--data DIR] [--scenes Teddy Piano] [--repeats 3] [-o benchmarks/results]
+    python benchmarks/speed.py [--data DIR] [--scenes Teddy Piano] [--repeats 5] [-o benchmarks/results]
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import gzip
+import json
+import re
 import resource
+import tempfile
 import time
 from pathlib import Path
 
@@ -22,11 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import sswjax
-from sswjax.aggregation import aggregate_cost
-from sswjax.cost import cost_volume
 from sswjax.datasets import find_data_root, load_middeval3
 from sswjax.peers import sgbm_disparity
-from sswjax.pipeline import prepare_pair, select_and_refine, ssw_disparity, superpixels
+from sswjax.pipeline import STAGES, prepare_pair, ssw_disparity
 
 
 def _timed(fn, *args):
@@ -35,27 +37,39 @@ def _timed(fn, *args):
     return time.perf_counter() - start
 
 
-def stage_functions(params: sswjax.Params, ndisp: int):
-    """Each pipeline stage jitted alone: name -> (function, how to build its inputs)."""
-    d, s = params.dynamic, params.static
+def _op_names(compiled_text: str) -> dict[str, str]:
+    """Instruction name -> ``op_name`` metadata (named scopes included) of a compiled graph."""
+    names = {}
+    for line in compiled_text.splitlines():
+        match = re.match(r'\s*(?:ROOT )?%(\S+) = .*?op_name="([^"]*)"', line)
+        if match:
+            names[match.group(1)] = match.group(2)
+    return names
 
-    def cost(left, right):
-        return cost_volume(left, right, ndisp=ndisp, tad_weight=d.tad_weight,
-                           gradient_weight=d.gradient_weight, census_weight=d.census_weight,
-                           tad_truncation=d.tad_truncation, gradient_truncation=d.gradient_truncation,
-                           census_height=s.census_height, census_width=s.census_width)
 
-    def segments(left):
-        return superpixels(left, params)[0]
+def stage_profile(left, right, params, ndisp) -> dict[str, float]:
+    """Seconds spent in each stage of one warm ``ssw_disparity`` call, from a profiler trace.
 
-    def aggregation(volume, left, labels, num_segments):
-        return aggregate_cost(volume, left, radius=s.aggregation_radius,
-                              iterations=s.aggregation_iterations,
-                              window_selection=s.window_selection, labels=labels,
-                              num_segments=num_segments, segment_weight=d.segment_weight)
-
-    return jax.jit(cost), jax.jit(segments), jax.jit(aggregation, static_argnums=3), jax.jit(
-        lambda volume: select_and_refine(volume, params))
+    Every executed XLA operation (thunk) is attributed to the stage whose ``jax.named_scope``
+    (``sswjax.pipeline.STAGES``) its ``op_name`` carries; loop containers are skipped so time is
+    not counted twice. Operations may overlap on the two cores, so stages can add up to more
+    than the wall time; the profiler also adds some overhead.
+    """
+    names = _op_names(ssw_disparity.lower(left, right, params, ndisp=ndisp).compile().as_text())
+    with tempfile.TemporaryDirectory() as directory:
+        with jax.profiler.trace(directory):
+            jax.block_until_ready(ssw_disparity(left, right, params, ndisp=ndisp))
+        (trace,) = Path(directory).rglob("*.trace.json.gz")
+        events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
+    seconds = dict.fromkeys(STAGES, 0.0)
+    for event in events:
+        op = names.get(event.get("name"))
+        if event.get("ph") != "X" or op is None or event["name"].startswith("while"):
+            continue
+        stage = next((s for s in STAGES if f"/{s}/" in op or op.endswith(f"/{s}")), None)
+        if stage is not None:
+            seconds[stage] += event["dur"] / 1e6
+    return seconds
 
 
 def bench_scene(scene, params, repeats):
@@ -68,19 +82,7 @@ def bench_scene(scene, params, repeats):
     for _ in range(repeats):
         ssw_times.append(_timed(full))
         sgbm_times.append(_timed(lambda: sgbm_disparity(scene.left, scene.right, ndisp)))
-    cost, segments, aggregation, refine = stage_functions(params, ndisp)
-    volume = cost(left, right)
-    labels = segments(left)
-    num_segments = superpixels(left, params)[1]
-    aggregated = aggregation(volume, left, labels, num_segments)
-    refine(aggregated)
-    stages = {
-        "cost": np.median([_timed(cost, left, right) for _ in range(repeats)]),
-        "superpixels": np.median([_timed(segments, left) for _ in range(repeats)]),
-        "aggregation": np.median(
-            [_timed(aggregation, volume, left, labels, num_segments) for _ in range(repeats)]),
-        "selection+refinement": np.median([_timed(refine, aggregated) for _ in range(repeats)]),
-    }
+    stages = stage_profile(left, right, params, ndisp)
     warm = float(np.median(ssw_times))
     sgbm = float(np.median(sgbm_times))
     height, width = scene.left.shape[:2]
@@ -101,7 +103,7 @@ def main() -> None:
     parser.add_argument("--data", type=Path)
     parser.add_argument("--scenes", nargs="+")
     parser.add_argument("--params", type=Path)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
@@ -115,17 +117,18 @@ def main() -> None:
     rss_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
     lines = [
         f"SSW vs OpenCV StereoSGBM 3-way, {len(rows)} pairs, median of {args.repeats} warm runs "
-        f"each; jax {jax.__version__}, {jax.devices()[0].platform}; peak RSS {rss_gb:.2f} GB",
+        f"each; jax {jax.__version__}, {jax.devices()[0].platform}; peak RSS {rss_gb:.2f} GB; "
+        "stage columns: milliseconds from one profiled run",
         "",
-        "| scene | W x H x D | first call s | SSW warm s | SGBM s | SSW / SGBM | Mde/s | cost s "
-        "| superpixels s | aggregation s | selection+refinement s |",
-        "|---" * 11 + "|",
+        "| scene | W x H x D | first call s | SSW warm s | SGBM s | SSW / SGBM | Mde/s | "
+        + " | ".join(f"{stage} ms" for stage in STAGES) + " |",
+        "|---" * (7 + len(STAGES)) + "|",
     ]
     for r in rows + [{"scene": "**median**", "size": "", **median}]:
+        stage_cells = " | ".join(f"{1e3 * r[f'{stage}_s']:.0f}" for stage in STAGES)
         lines.append(
             f"| {r['scene']} | {r['size']} | {r['first_call_s']:.2f} | {r['warm_s']:.3f} | "
-            f"{r['sgbm_s']:.3f} | {r['ratio']:.1f} | {r['mde_per_s']:.0f} | {r['cost_s']:.3f} | "
-            f"{r['superpixels_s']:.3f} | {r['aggregation_s']:.3f} | {r['selection+refinement_s']:.3f} |"
+            f"{r['sgbm_s']:.3f} | {r['ratio']:.1f} | {r['mde_per_s']:.0f} | {stage_cells} |"
         )
     table = "\n".join(lines)
     print(table)

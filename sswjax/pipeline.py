@@ -23,7 +23,12 @@ from sswjax.filters import side_window_median_filter
 from sswjax.params import Params
 from sswjax.refinement import fill_invalid, left_right_consistency
 from sswjax.segments import slic, slic_grid_shape
-from sswjax.selection import Winners, fold_winners, no_winners, parabola_refine, right_winners
+from sswjax.selection import Winners, fold_winners, no_winners, parabola_refine
+
+
+STAGES = ("cost", "superpixels", "aggregation", "selection", "refinement")
+"""Named scopes (``jax.named_scope``) of the stages in the compiled graph: profiler traces
+attribute each operation to one of them (``benchmarks/speed.py``)."""
 
 
 def _check_pair(left, right, ndisp: int) -> None:
@@ -69,43 +74,49 @@ def _aggregate_slices(
     left: jax.Array,
     labels: jax.Array,
     num_segments: int,
-    disparities: jax.Array,
+    first,
+    count: int,
     params: Params,
 ) -> jax.Array:
-    """Eq. (5) and (7) for the given disparities: cost slices, then their aggregation.
+    """Eq. (5) and (7) for disparities ``first .. first + count - 1``: cost, then aggregation.
 
     Every aggregator acts on each disparity slice independently (the guide and superpixels are
     shared), so slices computed in chunks equal those of the whole volume.
     """
     static, dynamic = params.static, params.dynamic
-    cost = matching_cost(
-        features,
-        disparities,
-        tad_weight=dynamic.tad_weight,
-        gradient_weight=dynamic.gradient_weight,
-        census_weight=dynamic.census_weight,
-        tad_truncation=dynamic.tad_truncation,
-        gradient_truncation=dynamic.gradient_truncation,
-    )
-    return aggregate_cost(
-        cost,
-        left,
-        radius=static.aggregation_radius,
-        iterations=static.aggregation_iterations,
-        window_selection=static.window_selection,
-        method=static.aggregation,
-        labels=labels,
-        num_segments=num_segments,
-        segment_weight=dynamic.segment_weight,
-    )
+    with jax.named_scope(STAGES[0]):
+        cost = matching_cost(
+            features,
+            first,
+            count,
+            tad_weight=dynamic.tad_weight,
+            gradient_weight=dynamic.gradient_weight,
+            census_weight=dynamic.census_weight,
+            tad_truncation=dynamic.tad_truncation,
+            gradient_truncation=dynamic.gradient_truncation,
+        )
+    with jax.named_scope(STAGES[2]):
+        return aggregate_cost(
+            cost,
+            left,
+            radius=static.aggregation_radius,
+            iterations=static.aggregation_iterations,
+            window_selection=static.window_selection,
+            method=static.aggregation,
+            labels=labels,
+            num_segments=num_segments,
+            segment_weight=dynamic.segment_weight,
+        )
 
 
 def _features(left, right, params: Params):
     static = params.static
-    features = matching_features(
-        left, right, census_height=static.census_height, census_width=static.census_width
-    )
-    labels, num_segments = superpixels(left, params)
+    with jax.named_scope(STAGES[0]):
+        features = matching_features(
+            left, right, census_height=static.census_height, census_width=static.census_width
+        )
+    with jax.named_scope(STAGES[1]):
+        labels, num_segments = superpixels(left, params)
     return features, labels, num_segments
 
 
@@ -126,28 +137,35 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     """
     _check_pair(left, right, ndisp)
     features, labels, num_segments = _features(left, right, params)
-    return _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
+    return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
 
 
 def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
     static = params.static
-    if static.subpixel:
-        disparity = parabola_refine(
-            winners.disparity, winners.before, winners.cost, winners.after, ndisp=ndisp
-        )
-    else:
-        disparity = winners.disparity.astype(jnp.float32)
-    if static.lr_check:
-        valid = left_right_consistency(
-            winners.disparity, right_winners(winners)[0], tolerance=params.dynamic.lr_tolerance
-        )
-        disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
-    if static.refine_radius > 0 and static.refine_iterations > 0:
-        disparity = side_window_median_filter(
-            disparity, radius=static.refine_radius, iterations=static.refine_iterations
-        )
-    return jnp.clip(disparity, 0, ndisp - 1)
+    with jax.named_scope(STAGES[3]):
+        if static.subpixel:
+            disparity = parabola_refine(
+                winners.disparity, winners.before, winners.cost, winners.after, ndisp=ndisp
+            )
+        else:
+            disparity = winners.disparity.astype(jnp.float32)
+    with jax.named_scope(STAGES[4]):
+        if static.lr_check:
+            valid = left_right_consistency(
+                winners.disparity, winners.right_disparity, tolerance=params.dynamic.lr_tolerance
+            )
+            disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
+        if static.refine_radius > 0 and static.refine_iterations > 0:
+            disparity = side_window_median_filter(
+                disparity, radius=static.refine_radius, iterations=static.refine_iterations
+            )
+        return jnp.clip(disparity, 0, ndisp - 1)
+
+
+def _fold(state: Winners, slices: jax.Array, first, limit) -> Winners:
+    with jax.named_scope(STAGES[3]):
+        return fold_winners(state, slices, first, limit=limit)
 
 
 def _with_halo(cost: jax.Array) -> jax.Array:
@@ -171,7 +189,7 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
     ndisp = cost.shape[0]
-    winners = fold_winners(no_winners(cost.shape[1:], ndisp=cost.shape[0]), _with_halo(cost), 0, limit=ndisp)
+    winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
     return _refine(winners, params, ndisp)
 
 
@@ -209,31 +227,31 @@ def ssw_disparity(
     features, labels, num_segments = _features(left, right, params)
     chunk = params.static.disparity_chunk
     if chunk == 0 or chunk >= ndisp:
-        cost = _aggregate_slices(features, left, labels, num_segments, jnp.arange(ndisp), params)
-        winners = fold_winners(no_winners(cost.shape[1:], ndisp=cost.shape[0]), _with_halo(cost), 0, limit=limit)
+        cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
+        winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
         return _refine(winners, params, limit)
 
     # Each step aggregates a block of K slices and folds the block of the previous step, which
     # the loop carries: every slice is computed once, and the fold reads a materialised block
     # (XLA would otherwise recompute the last filtering pass inside each of its consumers).
-    # The first step folds an empty block at disparities -K .. -1, hence ``origin=-chunk``.
+    # The first step folds an empty block (disparities -K .. -1, all +inf).
     height, width = left.shape[:2]
     inf_plane = jnp.full((1, height, width), jnp.inf, jnp.float32)
     firsts = jnp.arange(0, ndisp, chunk)
 
     def fold(state, block, before, after, first):
         halo = jnp.concatenate([before, block, after])
-        return fold_winners(state, halo, first, limit=limit, origin=-chunk)
+        return _fold(state, halo, first, limit)
 
     def step(carry, first):
         state, previous, before = carry
-        disparities = jnp.clip(first + jnp.arange(chunk), 0, ndisp - 1)
-        block = _aggregate_slices(features, left, labels, num_segments, disparities, params)
+        # The last block may run past ndisp: those slices are computed but masked by the fold.
+        block = _aggregate_slices(features, left, labels, num_segments, first, chunk, params)
         state = fold(state, previous, before, block[:1], first - chunk)
         return (state, block, previous[-1:]), None
 
     empty = jnp.full((chunk, height, width), jnp.inf, jnp.float32)
-    start = (no_winners((height, width), ndisp=(len(firsts) + 1) * chunk), empty, inf_plane)
+    start = (no_winners((height, width)), empty, inf_plane)
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
     return _refine(winners, params, limit)

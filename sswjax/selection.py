@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax import lax
 
 from sswjax._checks import check_floating, check_rank
 
@@ -38,15 +39,11 @@ def winner_takes_all(cost: jax.Array) -> jax.Array:
 
 
 class Winners(NamedTuple):
-    """Running winner-takes-all state of both views over disparity slices.
+    """Running winner-takes-all state of both views over disparity slices (all arrays (H, W)).
 
-    Left view, float32/int32 ``(H, W)``: ``disparity`` (int32) and ``cost`` of the best slice
-    so far, ``before``/``after`` the costs at ``disparity -/+ 1`` (for the parabola). Right
-    view, ``C_R(x, d) = C(x + d, d)``: ``right_disparity`` (int32) and ``right_cost``, stored
-    *skewed* as ``(H, W + P)`` arrays (P = number of disparities to fold): after ``n`` slices,
-    column ``x'`` holds right pixel ``x' - (n - 1)``. Advancing one disparity is then a
-    one-column shift, so every update is element-wise and XLA fuses the whole fold into one
-    pass; :func:`right_winners` undoes the skew.
+    ``disparity``/``cost``: the left view's best disparity (int32) and its cost; ``before`` and
+    ``after``: the costs at ``disparity - 1`` and ``+ 1`` (for the parabola); ``right_disparity``
+    and ``right_cost``: the same minimum for the right view, ``C_R(x, d) = C(x + d, d)``.
     """
 
     disparity: jax.Array
@@ -57,33 +54,21 @@ class Winners(NamedTuple):
     right_cost: jax.Array
 
 
-def no_winners(shape: tuple[int, int], *, ndisp: int) -> Winners:
-    """The state before any slice (costs ``+inf``, disparities 0) for ``ndisp`` slices to come."""
-    height, width = shape
+def no_winners(shape: tuple[int, int]) -> Winners:
+    """The state before any slice: every cost ``+inf``, every disparity 0."""
     zeros, inf = jnp.zeros(shape, jnp.int32), jnp.full(shape, jnp.inf, jnp.float32)
-    skewed = (height, width + ndisp)
-    return Winners(zeros, inf, inf, inf, jnp.zeros(skewed, jnp.int32),
-                   jnp.full(skewed, jnp.inf, jnp.float32))
+    return Winners(zeros, inf, inf, inf, zeros, inf)
 
 
-def right_winners(state: Winners) -> tuple[jax.Array, jax.Array]:
-    """The right view's ``(disparity int32 (H, W), cost float32 (H, W))`` once all P slices
-    announced to :func:`no_winners` are folded."""
-    width = state.disparity.shape[1]
-    offset = state.right_cost.shape[1] - width - 1
-    return (state.right_disparity[:, offset : offset + width],
-            state.right_cost[:, offset : offset + width])
-
-
-def fold_winners(state: Winners, slices: jax.Array, first, *, limit, origin: int = 0) -> Winners:
+def fold_winners(state: Winners, slices: jax.Array, first, *, limit) -> Winners:
     """Fold cost slices for disparities ``first - 1 .. first + K`` into the running winners.
 
-    Eq. (8) for both views at once: an unrolled chain of element-wise minimums over the K core
-    slices, which XLA fuses into one pass, where ``argmin`` over the disparity axis (a
-    reduction over a major axis) measured 6x slower on CPU. Ties keep the smaller disparity, as
-    ``argmin`` does. ``slices[0]`` and ``slices[-1]`` are a halo, used only for
-    ``before``/``after``. Slices must be folded in increasing disparity order, each once, for
-    the right view's skew (see :class:`Winners`).
+    Eq. (8) for both views at once, as unrolled chains of element-wise minimums over the K core
+    slices, which XLA fuses into single passes (``argmin`` over the disparity axis, a reduction
+    over a major axis, measured 6x slower on CPU). For the right view the block's minimum is
+    taken in block coordinates ``u = x_r + first`` with static shifts, then moved to right-image
+    coordinates with one dynamic shift. Ties keep the smaller disparity, as ``argmin`` does.
+    ``slices[0]`` and ``slices[-1]`` are a halo, used only for ``before``/``after``.
 
     Parameters
     ----------
@@ -94,9 +79,6 @@ def fold_winners(state: Winners, slices: jax.Array, first, *, limit, origin: int
         Disparity of ``slices[1]`` (traced values are fine).
     limit : int or int32 scalar
         Disparities outside ``[0, limit)`` count as ``+inf``.
-    origin : int
-        The disparity of the first slice ever folded into this state (static; negative when
-        the caller starts with empty, out-of-range slices).
 
     Returns
     -------
@@ -106,7 +88,7 @@ def fold_winners(state: Winners, slices: jax.Array, first, *, limit, origin: int
     --------
     >>> import jax.numpy as jnp
     >>> c = jnp.stack([jnp.full((1, 3), v) for v in (3.0, 1.0, 2.0)])
-    >>> w = fold_winners(no_winners((1, 3), ndisp=3), jnp.concatenate([c[:1], c, c[-1:]]), 0, limit=3)
+    >>> w = fold_winners(no_winners((1, 3)), jnp.concatenate([c[:1], c, c[-1:]]), 0, limit=3)
     >>> w.disparity.tolist(), float(w.before[0, 0]), float(w.after[0, 0])
     ([[1, 1, 1]], 3.0, 2.0)
     """
@@ -115,32 +97,38 @@ def fold_winners(state: Winners, slices: jax.Array, first, *, limit, origin: int
     count = slices.shape[0] - 2
     if count < 1:
         raise ValueError(f"need at least 3 slices (one core slice and two halo), got {count + 2}")
-    extra = state.right_cost.shape[1] - slices.shape[2]
-    if not 0 <= -origin <= extra:
-        raise ValueError(f"origin must be in [{-extra}, 0], got {origin}")
+    height, width = slices.shape[1:]
     planes = [
         jnp.where((first - 1 + k >= 0) & (first - 1 + k < limit), slices[k], jnp.inf)
         for k in range(count + 2)
     ]
     s = state
+    block_cost = jnp.full((height, width), jnp.inf, jnp.float32)
+    block_index = jnp.zeros((height, width), jnp.int32)
     for k in range(1, count + 1):
-        d, cost = first + k - 1, planes[k]
+        cost = planes[k]
         better = cost < s.cost
-        # Right view, skewed: shift the state one column; the n-th folded slice (d = origin + n)
-        # puts right pixel x_r's candidate C(x_r + d, d) at column x' = x_r + n.
-        right_cost = jnp.pad(s.right_cost[:, :-1], ((0, 0), (1, 0)), constant_values=jnp.inf)
-        right_disparity = jnp.pad(s.right_disparity[:, :-1], ((0, 0), (1, 0)))
-        candidate = jnp.pad(cost, ((0, 0), (-origin, extra + origin)), constant_values=jnp.inf)
-        right_better = candidate < right_cost
-        s = Winners(
-            disparity=jnp.where(better, d, s.disparity).astype(jnp.int32),
+        s = s._replace(
+            disparity=jnp.where(better, first + k - 1, s.disparity).astype(jnp.int32),
             cost=jnp.where(better, cost, s.cost),
             before=jnp.where(better, planes[k - 1], s.before),
             after=jnp.where(better, planes[k + 1], s.after),
-            right_disparity=jnp.where(right_better, d, right_disparity).astype(jnp.int32),
-            right_cost=jnp.where(right_better, candidate, right_cost),
         )
-    return s
+        # Right view in block coordinates: C(u + (k - 1), first + k - 1) at u = x_r + first.
+        shifted = jnp.pad(cost[:, k - 1 :], ((0, 0), (0, k - 1)), constant_values=jnp.inf)
+        right_better = shifted < block_cost
+        block_cost = jnp.where(right_better, shifted, block_cost)
+        block_index = jnp.where(right_better, k - 1, block_index)
+    # To right-image coordinates: x_r = u - first, so read column x_r + first.
+    start = jnp.clip(first, 0, width)
+    cost = lax.dynamic_slice_in_dim(
+        jnp.pad(block_cost, ((0, 0), (0, width)), constant_values=jnp.inf), start, width, axis=1)
+    index = lax.dynamic_slice_in_dim(jnp.pad(block_index, ((0, 0), (0, width))), start, width, axis=1)
+    right_better = cost < s.right_cost
+    return s._replace(
+        right_disparity=jnp.where(right_better, first + index, s.right_disparity).astype(jnp.int32),
+        right_cost=jnp.where(right_better, cost, s.right_cost),
+    )
 
 
 def subpixel_parabola(cost: jax.Array, disparity: jax.Array) -> jax.Array:
