@@ -1,10 +1,19 @@
 """Tests for sswjax.cost against brute-force NumPy references (tiny arrays, plain loops)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.cost import census_transform, cost_volume, hamming_distance, sobel_gradient_magnitude
+from sswjax.cost import (
+    COST_BLOCK,
+    census_transform,
+    cost_volume,
+    hamming_distance,
+    matching_cost,
+    matching_features,
+    sobel_gradient_magnitude,
+)
 
 LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -219,6 +228,22 @@ def test_cost_volume_matches_eq5_reference(pair, census_size):
         np.testing.assert_allclose(ours[d, :, :d], 1.5, atol=1e-6)
     # sanity: the true disparity wins in the interior
     assert (ours[:, :, 4:].argmin(axis=0) == 2).mean() > 0.9
+
+
+def test_matching_cost_blocks_and_traced_first_match_the_reference(pair):
+    """More disparities than one unrolled block (the lax.map path, cropped), and a block
+    starting at a traced disparity, both equal the brute-force reference."""
+    left, right = pair
+    weights = dict(alpha=0.3, beta=0.5, gamma=0.7, tau_c=0.1, tau_g=0.05)
+    kw = dict(tad_weight=0.3, gradient_weight=0.5, census_weight=0.7, tad_truncation=0.1,
+              gradient_truncation=0.05)
+    ndisp = COST_BLOCK + 5
+    reference = cost_volume_reference(left, right, ndisp, *weights.values(), 7, 9)
+    features = matching_features(jnp.asarray(left), jnp.asarray(right))
+    whole = np.asarray(matching_cost(features, 0, ndisp, **kw))
+    np.testing.assert_allclose(whole, reference, atol=2e-5, rtol=0)
+    block = jax.jit(lambda first: matching_cost(features, first, 3, **kw))(jnp.int32(9))
+    np.testing.assert_allclose(np.asarray(block), reference[9:12], atol=2e-5, rtol=0)
 
 
 def test_cost_volume_gray_single_channel(pair):
