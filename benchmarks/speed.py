@@ -72,7 +72,7 @@ def stage_profile(left, right, params, ndisp) -> dict[str, float]:
     return seconds
 
 
-def bench_scene(scene, params, repeats):
+def bench_scene(scene, params, repeats, pandora=False):
     left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
     ndisp = scene.ndisp
     full = lambda: ssw_disparity(left, right, params, ndisp=ndisp)  # noqa: E731
@@ -83,6 +83,10 @@ def bench_scene(scene, params, repeats):
         ssw_times.append(_timed(full))
         sgbm_times.append(_timed(lambda: sgbm_disparity(scene.left, scene.right, ndisp)))
     stages = stage_profile(left, right, params, ndisp)
+    if pandora:  # one run: it takes seconds per pair, far above the machine's noise
+        from sswjax.peers import pandora_disparity
+
+        pandora_s = _timed(lambda: pandora_disparity(scene.left, scene.right, ndisp))
     warm = float(np.median(ssw_times))
     sgbm = float(np.median(sgbm_times))
     height, width = scene.left.shape[:2]
@@ -95,6 +99,7 @@ def bench_scene(scene, params, repeats):
         "ratio": warm / sgbm,
         "mde_per_s": width * height * ndisp / warm / 1e6,
         **{f"{k}_s": float(v) for k, v in stages.items()},
+        **({"pandora_s": pandora_s, "pandora_ratio": pandora_s / warm} if pandora else {}),
     }
 
 
@@ -104,13 +109,19 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+")
     parser.add_argument("--params", type=Path)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--pandora", action="store_true",
+                        help="also time CNES Pandora (census + SGM; pip install 'sswjax[pandora]')")
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
     scenes = load_middeval3(find_data_root(args.data), scenes=args.scenes)
     rows = []
+    if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
+        from sswjax.peers import pandora_disparity
+
+        pandora_disparity(scenes[0].left, scenes[0].right, scenes[0].ndisp)
     for scene in scenes:
-        rows.append(bench_scene(scene, params, args.repeats))
+        rows.append(bench_scene(scene, params, args.repeats, pandora=args.pandora))
         print(f"{scene.name}: warm {rows[-1]['warm_s']:.3f} s, sgbm {rows[-1]['sgbm_s']:.3f} s", flush=True)
     keys = list(rows[0])
     median = {k: float(np.median([r[k] for r in rows])) for k in keys if k not in ("scene", "size")}
@@ -121,14 +132,16 @@ def main() -> None:
         "stage columns: milliseconds from one profiled run",
         "",
         "| scene | W x H x D | first call s | SSW warm s | SGBM s | SSW / SGBM | Mde/s | "
-        + " | ".join(f"{stage} ms" for stage in STAGES) + " |",
-        "|---" * (7 + len(STAGES)) + "|",
+        + " | ".join(f"{stage} ms" for stage in STAGES)
+        + (" | Pandora s | Pandora / SSW" if args.pandora else "") + " |",
+        "|---" * (7 + len(STAGES) + 2 * args.pandora) + "|",
     ]
     for r in rows + [{"scene": "**median**", "size": "", **median}]:
         stage_cells = " | ".join(f"{1e3 * r[f'{stage}_s']:.0f}" for stage in STAGES)
         lines.append(
             f"| {r['scene']} | {r['size']} | {r['first_call_s']:.2f} | {r['warm_s']:.3f} | "
             f"{r['sgbm_s']:.3f} | {r['ratio']:.1f} | {r['mde_per_s']:.0f} | {stage_cells} |"
+            + (f" {r['pandora_s']:.2f} | {r['pandora_ratio']:.1f} |" if args.pandora else "")
         )
     table = "\n".join(lines)
     print(table)
