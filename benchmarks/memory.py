@@ -2,9 +2,10 @@
 
 A Q pair (MiddEval3 trainingQ, default Motorcycle) is upsampled by ``--scale`` (2 = H, 4 = the
 full-resolution size, 2964 x 1988 with 280 disparities) and matched with
-``disparity_chunk`` = 0 (whole volume) or K; the child's peak RSS and wall time are reported.
+``disparity_chunk`` = 0 (whole volume) or K (default 4); the child's peak RSS and wall time are
+reported, printed and written to ``benchmarks/results/memory.md``.
 
-    python benchmarks/memory.py [--scene Motorcycle] [--scales 1 4] [--chunks 0 16]
+    python benchmarks/memory.py [--scene Motorcycle] [--scales 1 4] [--chunks 0 4] [-o DIR]
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import json
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 CHILD = r"""
 import json, resource, sys, time
@@ -37,25 +39,34 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="Motorcycle")
     parser.add_argument("--scales", type=int, nargs="+", default=(1, 4))
-    parser.add_argument("--chunks", type=int, nargs="+", default=(0, 16))
+    parser.add_argument("--chunks", type=int, nargs="+", default=(0, 4))
+    parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
-    print("| scale | W x H x D | disparity_chunk | first call s (compile + run) | peak RSS GB |")
-    print("|---|---|---|---|---|")
+    lines = []
+
+    def emit(line):
+        print(line, flush=True)
+        lines.append(line)
+
+    emit("| scale | W x H x D | disparity_chunk | first call s (compile + run) | peak RSS GB |")
+    emit("|---|---|---|---|---|")
     for scale in args.scales:
         for chunk in args.chunks:
             if scale >= 4 and chunk == 0:
-                print(f"| {scale} | | 0 | skipped: the whole volume needs > 20 GB | |")
+                emit(f"| {scale} | | 0 | skipped: the whole volume needs > 20 GB | |")
                 continue
             start = time.perf_counter()
             run = subprocess.run([sys.executable, "-c", CHILD, args.scene, str(scale), str(chunk)],
                                  capture_output=True, text=True)
             if run.returncode != 0:
-                print(f"| {scale} | | {chunk} | failed: {run.stderr.strip().splitlines()[-1]} | |")
+                emit(f"| {scale} | | {chunk} | failed: {run.stderr.strip().splitlines()[-1]} | |")
                 continue
             result = json.loads(run.stdout.strip().splitlines()[-1])
             h, w = result["shape"]
-            print(f"| {scale} | {w} x {h} x {result['ndisp']} | {chunk} | "
-                  f"{time.perf_counter() - start:.1f} | {result['peak_rss_gb']:.2f} |", flush=True)
+            emit(f"| {scale} | {w} x {h} x {result['ndisp']} | {chunk} | "
+                 f"{time.perf_counter() - start:.1f} | {result['peak_rss_gb']:.2f} |")
+    args.output.mkdir(parents=True, exist_ok=True)
+    (args.output / "memory.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from sswjax.cost import (
-    COST_BLOCK,
     census_transform,
     cost_volume,
     hamming_distance,
@@ -230,14 +229,14 @@ def test_cost_volume_matches_eq5_reference(pair, census_size):
     assert (ours[:, :, 4:].argmin(axis=0) == 2).mean() > 0.9
 
 
-def test_matching_cost_blocks_and_traced_first_match_the_reference(pair):
-    """More disparities than one unrolled block (the lax.map path, cropped), and a block
-    starting at a traced disparity, both equal the brute-force reference."""
+def test_matching_cost_volume_and_traced_block_match_the_reference(pair):
+    """A volume of many disparities, and a block starting at a traced disparity, both equal
+    the brute-force reference."""
     left, right = pair
     weights = dict(alpha=0.3, beta=0.5, gamma=0.7, tau_c=0.1, tau_g=0.05)
     kw = dict(tad_weight=0.3, gradient_weight=0.5, census_weight=0.7, tad_truncation=0.1,
               gradient_truncation=0.05)
-    ndisp = COST_BLOCK + 5
+    ndisp = 13
     reference = cost_volume_reference(left, right, ndisp, *weights.values(), 7, 9)
     features = matching_features(jnp.asarray(left), jnp.asarray(right))
     whole = np.asarray(matching_cost(features, 0, ndisp, **kw))

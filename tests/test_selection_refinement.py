@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from sswjax.refinement import fill_background, fill_invalid, left_right_consistency, right_cost_volume
-from sswjax.selection import soft_argmin, subpixel_parabola, winner_takes_all
+from sswjax.selection import fold_winners, no_winners, soft_argmin, subpixel_parabola, winner_takes_all
 
 # ---------------------------------------------------------------------------------------------
 # selection
@@ -25,6 +25,40 @@ def test_winner_takes_all_smallest_d_on_ties():
     # an all-equal column picks 0
     flat = np.ones((4, 1, 1), np.float32)
     assert int(winner_takes_all(jnp.asarray(flat))[0, 0]) == 0
+
+
+def _fold_in_blocks(cost, block, limit):
+    """Fold ``cost`` (D, H, W) block by block, each block with its two halo slices."""
+    ndisp = cost.shape[0]
+    padded = np.concatenate([np.full((1,) + cost.shape[1:], 7.0, np.float32), cost,
+                             np.full((block + 1,) + cost.shape[1:], 7.0, np.float32)])
+    state = no_winners(cost.shape[1:])
+    for first in range(0, ndisp, block):
+        state = fold_winners(state, jnp.asarray(padded[first : first + block + 2]), jnp.int32(first),
+                             limit=limit)
+    return state
+
+
+@pytest.mark.parametrize("block", [1, 3, 8])
+def test_fold_winners_in_blocks_equals_argmin_of_both_views(block):
+    """The running fold equals argmin over the whole volume for the left view (with the costs
+    at d -/+ 1) and for the right view C_R(x, d) = C(x + d, d), ties to the smaller d,
+    disparities at or beyond ``limit`` ignored, whatever the block size."""
+    rng = np.random.default_rng(5)
+    ndisp, limit = 8, 6
+    cost = rng.integers(0, 4, size=(ndisp, 4, 9)).astype(np.float32)  # many ties
+    state = _fold_in_blocks(cost, block, limit)
+    inside = cost[:limit]
+    left = np.argmin(inside, axis=0)
+    np.testing.assert_array_equal(np.asarray(state.disparity), left)
+    np.testing.assert_array_equal(np.asarray(state.cost), np.min(inside, axis=0))
+    padded = np.concatenate([np.full((1, 4, 9), np.inf), inside, np.full((1, 4, 9), np.inf)])
+    rows, cols = np.indices(left.shape)
+    np.testing.assert_array_equal(np.asarray(state.before), padded[left, rows, cols])
+    np.testing.assert_array_equal(np.asarray(state.after), padded[left + 2, rows, cols])
+    right = np.asarray(right_cost_volume(jnp.asarray(inside)))
+    np.testing.assert_array_equal(np.asarray(state.right_disparity), np.argmin(right, axis=0))
+    np.testing.assert_array_equal(np.asarray(state.right_cost), np.min(right, axis=0))
 
 
 def test_subpixel_parabola_exact_on_sampled_parabola():
