@@ -236,19 +236,19 @@ def ssw_disparity(
     # (XLA would otherwise recompute the last filtering pass inside each of its consumers).
     # The first step folds an empty block (disparities -K .. -1, all +inf).
     height, width = left.shape[:2]
-    inf_plane = jnp.full((1, height, width), jnp.inf, jnp.float32)
+    inf_plane = jnp.full((height, width), jnp.inf, jnp.float32)
     firsts = jnp.arange(0, ndisp, chunk)
 
     def fold(state, block, before, after, first):
-        halo = jnp.concatenate([before, block, after])
-        return _fold(state, halo, first, limit)
+        planes = [before, *(block[k] for k in range(chunk)), after]
+        return _fold(state, planes, first, limit)
 
     def step(carry, first):
         state, previous, before = carry
         # The last block may run past ndisp: those slices are computed but masked by the fold.
         block = _aggregate_slices(features, left, labels, num_segments, first, chunk, params)
-        state = fold(state, previous, before, block[:1], first - chunk)
-        return (state, block, previous[-1:]), None
+        state = fold(state, previous, before, block[0], first - chunk)
+        return (state, block, previous[-1]), None
 
     empty = jnp.full((chunk, height, width), jnp.inf, jnp.float32)
     start = (no_winners((height, width)), empty, inf_plane)

@@ -60,7 +60,7 @@ def no_winners(shape: tuple[int, int]) -> Winners:
     return Winners(zeros, inf, inf, inf, zeros, inf)
 
 
-def fold_winners(state: Winners, slices: jax.Array, first, *, limit) -> Winners:
+def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
     """Fold cost slices for disparities ``first - 1 .. first + K`` into the running winners.
 
     Eq. (8) for both views at once, as unrolled chains of element-wise minimums over the K core
@@ -73,8 +73,9 @@ def fold_winners(state: Winners, slices: jax.Array, first, *, limit) -> Winners:
     Parameters
     ----------
     state : Winners
-    slices : float32 (K + 2, H, W)
-        Cost of the left view at disparities ``first - 1 .. first + K``.
+    slices : float32 (K + 2, H, W), or a sequence of K + 2 float32 (H, W) planes
+        Cost of the left view at disparities ``first - 1 .. first + K`` (a sequence spares the
+        caller a concatenation).
     first : int or int32 scalar
         Disparity of ``slices[1]`` (traced values are fine).
     limit : int or int32 scalar
@@ -92,15 +93,17 @@ def fold_winners(state: Winners, slices: jax.Array, first, *, limit) -> Winners:
     >>> w.disparity.tolist(), float(w.before[0, 0]), float(w.after[0, 0])
     ([[1, 1, 1]], 3.0, 2.0)
     """
-    check_rank("slices", slices, 3)
-    check_floating("slices", slices)
-    count = slices.shape[0] - 2
+    planes = [slices[k] for k in range(len(slices))]
+    for plane in planes:
+        check_rank("slice", plane, 2)
+        check_floating("slice", plane)
+    count = len(planes) - 2
     if count < 1:
         raise ValueError(f"need at least 3 slices (one core slice and two halo), got {count + 2}")
-    height, width = slices.shape[1:]
+    height, width = planes[0].shape
     planes = [
-        jnp.where((first - 1 + k >= 0) & (first - 1 + k < limit), slices[k], jnp.inf)
-        for k in range(count + 2)
+        jnp.where((first - 1 + k >= 0) & (first - 1 + k < limit), plane, jnp.inf)
+        for k, plane in enumerate(planes)
     ]
     s = state
     block_cost = jnp.full((height, width), jnp.inf, jnp.float32)
