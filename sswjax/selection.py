@@ -100,6 +100,9 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
     count = len(planes) - 2
     if count < 1:
         raise ValueError(f"need at least 3 slices (one core slice and two halo), got {count + 2}")
+    if any(plane.shape != state.cost.shape for plane in planes):
+        raise ValueError(f"slices must all be {state.cost.shape} like the state, got "
+                         f"{sorted({tuple(plane.shape) for plane in planes})}")
     height, width = planes[0].shape
     planes = [
         jnp.where((first - 1 + k >= 0) & (first - 1 + k < limit), plane, jnp.inf)

@@ -61,6 +61,14 @@ def test_fold_winners_in_blocks_equals_argmin_of_both_views(block):
     np.testing.assert_array_equal(np.asarray(state.right_cost), np.min(right, axis=0))
 
 
+def test_fold_winners_rejects_bad_slices():
+    state = no_winners((2, 3))
+    with pytest.raises(ValueError, match="at least 3 slices"):
+        fold_winners(state, jnp.zeros((2, 2, 3)), 0, limit=4)
+    with pytest.raises(ValueError, match="like the state"):
+        fold_winners(state, jnp.zeros((3, 2, 4)), 0, limit=4)
+
+
 def test_subpixel_parabola_exact_on_sampled_parabola():
     rng = np.random.default_rng(1)
     ndisp, h, w = 9, 4, 6
