@@ -163,14 +163,15 @@ def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
         return jnp.clip(disparity, 0, ndisp - 1)
 
 
-def _fold(state: Winners, slices: jax.Array, first, limit) -> Winners:
+def _fold(state: Winners, slices, first, limit) -> Winners:
     with jax.named_scope(STAGES[3]):
         return fold_winners(state, slices, first, limit=limit)
 
 
-def _with_halo(cost: jax.Array) -> jax.Array:
-    """``(D + 2, H, W)``: the volume between two halo slices (masked to +inf by the fold)."""
-    return jnp.concatenate([cost[:1], cost, cost[-1:]])
+def _with_halo(cost: jax.Array) -> list[jax.Array]:
+    """The D planes of a volume between two halo planes (masked to +inf by the fold); a list,
+    so no copy of the volume is made."""
+    return [cost[0], *(cost[d] for d in range(cost.shape[0])), cost[-1]]
 
 
 def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
