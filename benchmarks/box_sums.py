@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from sswjax.filters import SUM_METHODS, select_side_window_mean
+from sswjax.stages.filters import SUM_METHODS, select_side_window_mean
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import sswjax
-from sswjax.datasets import find_data_root, load_middeval3
+from sswjax.data.datasets import find_data_root, load_middeval3
 
 scene_name, scale, chunk = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]

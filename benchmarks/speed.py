@@ -26,9 +26,10 @@ import jax.numpy as jnp
 import numpy as np
 
 import sswjax
-from sswjax.datasets import find_data_root, load_middeval3
-from sswjax.peers import sgbm_disparity
-from sswjax.pipeline import STAGES, prepare_pair, ssw_disparity
+from sswjax.data.datasets import find_data_root, load_middeval3
+from sswjax.evaluation.peers import sgbm_disparity
+from sswjax.api import prepare_pair
+from sswjax.pipeline import STAGES, ssw_disparity
 
 
 def _timed(fn, *args):
@@ -84,7 +85,7 @@ def bench_scene(scene, params, repeats, pandora=False):
         sgbm_times.append(_timed(lambda: sgbm_disparity(scene.left, scene.right, ndisp)))
     stages = stage_profile(left, right, params, ndisp)
     if pandora:  # one run: it takes seconds per pair, far above the machine's noise
-        from sswjax.peers import pandora_disparity
+        from sswjax.evaluation.peers import pandora_disparity
 
         pandora_s = _timed(lambda: pandora_disparity(scene.left, scene.right, ndisp))
     warm = float(np.median(ssw_times))
@@ -117,7 +118,7 @@ def main() -> None:
     scenes = load_middeval3(find_data_root(args.data), scenes=args.scenes)
     rows = []
     if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
-        from sswjax.peers import pandora_disparity
+        from sswjax.evaluation.peers import pandora_disparity
 
         pandora_disparity(scenes[0].left, scenes[0].right, scenes[0].ndisp)
     for scene in scenes:

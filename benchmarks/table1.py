@@ -15,11 +15,11 @@ import argparse
 from pathlib import Path
 
 from sswjax.cli import main as sswjax_main
-from sswjax.datasets import find_data_root, load_middeval3
-from sswjax.evaluation import THRESHOLDS, SceneResult
-from sswjax.io import read_pfm
-from sswjax.methods import submission_name
-from sswjax.metrics import evaluate_disparity
+from sswjax.data.datasets import find_data_root, load_middeval3
+from sswjax.evaluation.runner import THRESHOLDS, SceneResult
+from sswjax.data.io import read_pfm
+from sswjax.evaluation.methods import submission_name
+from sswjax.evaluation.metrics import evaluate_disparity
 
 METHODS = ("ssw", "bf", "gf", "igf", "mf", "box", "sgbm", "ssw-noseg", "ssw-norefine", "ssw-nolr",
            "ssw-guide", "ssw-tad", "ssw-gm", "ssw-census")
@@ -29,7 +29,7 @@ FIGURE_SCENES = ("Teddy", "ArtL", "Playtable", "Vintage")
 
 def figure_from_outputs(out: Path, data: Path | None) -> Path:
     """Draw the README figure from the PFMs that ``sswjax evaluate`` wrote into ``out``."""
-    from sswjax.figures import comparison_figure
+    from sswjax.evaluation.figures import comparison_figure
 
     scenes = load_middeval3(find_data_root(data), scenes=list(FIGURE_SCENES))
     results = {}

@@ -10,7 +10,8 @@ filling and side-window refinement.
 """
 
 from sswjax.params import DynamicParams, Params, StaticParams, load_params, save_params
-from sswjax.pipeline import ShapeBuckets, aggregated_cost, match, select_and_refine, ssw_disparity
+from sswjax.api import ShapeBuckets, match
+from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity
 
 __all__ = [
     "DynamicParams",

@@ -26,7 +26,8 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from sswjax._checks import check_rank, check_same_shape
 from sswjax.params import Params, check_params
-from sswjax.pipeline import ShapeBuckets, bucket_shape, checked_pair, pad_to_bucket, ssw_disparity
+from sswjax.api import ShapeBuckets, bucket_shape, checked_pair, pad_to_bucket
+from sswjax.pipeline import ssw_disparity
 
 BATCH_AXIS = "batch"
 """Name of the mesh axis the batch is split over."""

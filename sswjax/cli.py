@@ -35,7 +35,7 @@ def _params(path):
 
 
 def _write_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None, ndisp: int) -> None:
-    from sswjax.io import write_disparity_png, write_pfm
+    from sswjax.data.io import write_disparity_png, write_pfm
 
     if pfm is not None:
         write_pfm(pfm, disparity)
@@ -57,7 +57,7 @@ def _check_output_dir(*paths: Path | None) -> None:
 def cmd_match(args) -> int:
     """``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm``."""
     import sswjax
-    from sswjax.io import read_image
+    from sswjax.data.io import read_image
 
     _check_output_dir(args.output, args.png)
     params = _params(args.params)
@@ -78,7 +78,7 @@ def cmd_demo(args) -> int:
     import skimage.data
 
     import sswjax
-    from sswjax.metrics import evaluate_disparity
+    from sswjax.evaluation.metrics import evaluate_disparity
 
     out = args.output
     out.mkdir(parents=True, exist_ok=True)
@@ -115,7 +115,7 @@ def _write_scene_result(folder: Path, tag: str, result) -> None:
     The disparity goes first: ``--resume`` needs both files, so an interruption between the two
     writes costs a recomputation but never pairs a new time with an old disparity map.
     """
-    from sswjax.io import atomic_output, write_pfm
+    from sswjax.data.io import atomic_output, write_pfm
 
     folder.mkdir(parents=True, exist_ok=True)
     write_pfm(folder / f"disp0{tag}.pfm", result.disparity)
@@ -129,8 +129,8 @@ def _saved_scene_result(folder: Path, tag: str, scene):
     Returns ``(None, None)`` when the files are absent and ``(None, reason)`` when they cannot
     be used (the scene is then recomputed).
     """
-    from sswjax.evaluation import evaluate_scene
-    from sswjax.io import InputError, read_pfm
+    from sswjax.evaluation.runner import evaluate_scene
+    from sswjax.data.io import InputError, read_pfm
 
     pfm, time_file = folder / f"disp0{tag}.pfm", folder / f"time{tag}.txt"
     if not (pfm.is_file() and time_file.is_file()):
@@ -156,22 +156,22 @@ def cmd_evaluate(args) -> int:
     With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
     Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
     disparities are read back and their metrics recomputed). With ``--bucket`` the SSW methods
-    are :class:`~sswjax.methods.BucketedSSW`: their scenes run grouped by bucket, one pair per
+    are :class:`~sswjax.evaluation.methods.BucketedSSW`: their scenes run grouped by bucket, one pair per
     JAX device per call, and a scene's time is its call's time divided by the pairs in it.
     """
     from tqdm import tqdm
 
-    from sswjax.datasets import find_data_root, load_middeval3
-    from sswjax.evaluation import (
+    from sswjax.data.datasets import find_data_root, load_middeval3
+    from sswjax.evaluation.runner import (
         iter_evaluate_scenes,
         markdown_table,
         summary_markdown,
         table1_markdown,
         write_metrics_csv,
     )
-    from sswjax.io import atomic_output
-    from sswjax.methods import make_method, submission_name
-    from sswjax.pipeline import ShapeBuckets
+    from sswjax.data.io import atomic_output
+    from sswjax.evaluation.methods import make_method, submission_name
+    from sswjax.api import ShapeBuckets
 
     if args.resume and args.output is None:
         raise ValueError("--resume needs -o/--output: the folder of the run to continue")
@@ -234,7 +234,7 @@ def cmd_evaluate(args) -> int:
             tmp.write_text(text + "\n")
         write_metrics_csv(args.output / "metrics.csv", results)
         if args.figure:
-            from sswjax.figures import comparison_figure
+            from sswjax.evaluation.figures import comparison_figure
 
             comparison_figure(args.output / "comparison.png", scenes, results)
         print(f"wrote {args.output}")
@@ -243,7 +243,7 @@ def cmd_evaluate(args) -> int:
 
 def cmd_download(args) -> int:
     """``sswjax download middeval3``: fetch and unpack the Middlebury MiddEval3 archives."""
-    from sswjax.download import download_middeval3
+    from sswjax.data.download import download_middeval3
 
     root = download_middeval3(args.dest, resolution=args.resolution, keep_archives=args.keep_archives)
     print(f"MiddEval3 {args.resolution} ready in {root}; evaluate with: sswjax evaluate --data {root}")

@@ -43,7 +43,7 @@ class StaticParams(NamedTuple):
     aggregation : str
         ``"ssw"`` (segment-side-window, the method) or a baseline aggregator that replaces it,
         everything else unchanged: ``"box"``, ``"bf"`` (bilateral), ``"gf"`` (guided filter),
-        ``"igf"`` (iterated guided filter), ``"mf"`` (median); see :mod:`sswjax.baselines`.
+        ``"igf"`` (iterated guided filter), ``"mf"`` (median); see :mod:`sswjax.stages.baselines`.
     window_selection : str
         ``"guide"``: each pixel's side window is chosen on the left image and shared by all
         disparities; ``"slice"``: chosen independently on every cost slice (Yin et al. 2019).
@@ -286,7 +286,7 @@ def load_params(path: str | os.PathLike) -> Params:
 
 def save_params(path: str | os.PathLike, params: Params, *, provenance: Mapping | None = None) -> None:
     """Write ``params`` (and optional provenance) as JSON, atomically."""
-    from sswjax.io import atomic_output
+    from sswjax.data.io import atomic_output
 
     data = params.to_dict()
     if provenance is not None:

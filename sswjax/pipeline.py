@@ -1,29 +1,25 @@
-"""The SSW pipeline: cost, segment-side-window aggregation, selection and refinement composed.
+"""The jitted graph: the stages of :mod:`sswjax.stages` composed into the SSW method.
 
 Array conventions (whole module): the pure functions take images float32 ``(H, W, C)`` with
 C in {1, 3} and values in [0, 1], a :class:`~sswjax.params.Params` pytree and a static
 ``ndisp``; they return float32 ``(H, W)`` disparities in pixels, dense, in [0, ndisp - 1].
-:func:`match` is the NumPy front door: it accepts uint8, uint16 or float images, gray or colour,
-validates them and returns a NumPy array.
+The NumPy front door (validation, conversion, shape buckets) is :mod:`sswjax.api`.
 """
 
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
-
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
-from sswjax.aggregation import aggregate_cost
-from sswjax.cost import MatchingFeatures, matching_cost, matching_features
-from sswjax.filters import side_window_median_filter
+from sswjax.stages.aggregation import aggregate_cost
+from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
+from sswjax.stages.filters import side_window_median_filter
 from sswjax.params import Params
-from sswjax.refinement import fill_invalid, left_right_consistency
-from sswjax.segments import slic, slic_grid_shape
-from sswjax.selection import Winners, fold_winners, no_winners, parabola_refine
+from sswjax.stages.refinement import fill_invalid, left_right_consistency
+from sswjax.stages.segments import slic, slic_grid_shape
+from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
 
 
 STAGES = ("cost", "superpixels", "aggregation", "selection", "refinement")
@@ -256,156 +252,3 @@ def ssw_disparity(
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
     return _refine(winners, params, limit)
-
-
-class ShapeBuckets(NamedTuple):
-    """Round image sizes and disparity counts up so that many pairs share one compiled graph.
-
-    Height and width are padded (edge-replicated, bottom and right) to multiples of
-    ``size_step`` and the volume to a multiple of ``ndisp_step`` disparities (the extra ones are
-    never chosen); results are cropped back. The defaults put the 15 MiddEval3 trainingQ pairs
-    into three shapes (512x512x96, 512x768x96, 512x768x192).
-    """
-
-    size_step: int = 256
-    ndisp_step: int = 96
-
-
-def bucket_shape(height: int, width: int, ndisp: int, buckets: ShapeBuckets) -> tuple[int, int, int]:
-    """Padded ``(height, width, ndisp)`` of a pair under ``buckets`` (``ndisp`` < width kept).
-
-    Examples
-    --------
-    >>> bucket_shape(375, 450, 64, ShapeBuckets())
-    (512, 512, 96)
-    """
-
-    def up(value, step):
-        return -(-value // step) * step
-
-    padded_ndisp = up(ndisp, buckets.ndisp_step)
-    padded_width = max(up(width, buckets.size_step), up(padded_ndisp + 1, buckets.size_step))
-    return up(height, buckets.size_step), padded_width, padded_ndisp
-
-
-def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a user's pair and convert it to float32 ``(H, W, C)`` in [0, 1].
-
-    Gray ``(H, W)`` or ``(H, W, 1)``, RGB ``(H, W, 3)`` and RGBA ``(H, W, 4)`` (alpha dropped)
-    are accepted, as uint8, uint16 or floating arrays (floats must be finite; they are used as
-    given, assumed in [0, 1]). If one image is gray and the other colour, both are used as gray.
-
-    Returns
-    -------
-    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
-    """
-    from sswjax.color import rgb_to_gray
-
-    def convert(name, image):
-        image = np.asarray(image)
-        if image.ndim == 2:
-            image = image[..., None]
-        if image.ndim != 3 or image.shape[-1] not in (1, 3, 4):
-            raise ValueError(
-                f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}"
-            )
-        if image.shape[0] == 0 or image.shape[1] == 0:
-            raise ValueError(f"{name} image is empty, got shape {image.shape}")
-        image = image[..., :3]
-        if image.dtype == np.uint8:
-            image = image.astype(np.float32) / 255
-        elif image.dtype == np.uint16:
-            image = image.astype(np.float32) / 65535
-        elif np.issubdtype(image.dtype, np.floating):
-            image = image.astype(np.float32)
-            if not np.isfinite(image).all():
-                raise ValueError(f"{name} image contains NaN or infinite values")
-        else:
-            raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
-        return image
-
-    left, right = convert("left", left), convert("right", right)
-    if left.shape[:2] != right.shape[:2]:
-        raise ValueError(
-            f"left and right images differ in size: {left.shape[1]}x{left.shape[0]} "
-            f"and {right.shape[1]}x{right.shape[0]}"
-        )
-    if left.shape[-1] != right.shape[-1]:
-        left, right = (
-            np.asarray(rgb_to_gray(im))[..., None] if im.shape[-1] == 3 else im
-            for im in (left, right)
-        )
-    return left, right
-
-
-def checked_pair(left, right, ndisp, params: Params) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`prepare_pair` plus the checks of :func:`match` on ``ndisp`` and on the image size.
-
-    Returns
-    -------
-    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
-    """
-    if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
-        raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
-    left, right = prepare_pair(left, right)
-    if not 1 <= ndisp < left.shape[1]:
-        raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
-    census = (params.static.census_width, params.static.census_height)
-    if min(left.shape[:2]) < max(census):
-        raise ValueError(
-            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
-            f"{census[0]}x{census[1]}: both sides must be at least {max(census)} pixels"
-        )
-    return left, right
-
-
-def pad_to_bucket(left, right, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """Edge-replicate a pair ``(H, W, C)`` at the bottom and right up to ``height x width``."""
-    pad = ((0, height - left.shape[0]), (0, width - left.shape[1]), (0, 0))
-    return tuple(np.pad(image, pad, mode="edge") for image in (left, right))
-
-
-def match(
-    left, right, ndisp: int, params: Params | None = None, *, buckets: ShapeBuckets | None = None
-) -> np.ndarray:
-    """Dense disparity map of a rectified stereo pair with the SSW method.
-
-    Parameters
-    ----------
-    left, right : array_like (H, W) or (H, W, 1|3|4), uint8, uint16 or float in [0, 1]
-        Rectified pair; the left image is the reference view.
-    ndisp : int
-        Disparities searched: 0 .. ndisp - 1 (Middlebury ``calib.txt`` ``ndisp``); 1 <= ndisp < W.
-    params : Params, optional
-        Defaults to ``Params()``; see :func:`sswjax.load_params`.
-    buckets : ShapeBuckets, optional
-        Pad the pair to a bucketed shape so that pairs of nearby sizes reuse one compilation
-        (results near the bottom and right borders can change slightly); default: exact shape.
-
-    Returns
-    -------
-    numpy.ndarray, float32 (H, W)
-        Disparity of every left pixel in pixels (dense, no invalid values).
-
-    Examples
-    --------
-    >>> import numpy as np, sswjax
-    >>> rng = np.random.default_rng(0)
-    >>> right = rng.random((40, 64, 3), dtype=np.float32)
-    >>> left = np.roll(right, 5, axis=1)          # the scene moved 5 px: disparity 5
-    >>> d = sswjax.match(left, right, ndisp=16)
-    >>> round(float(np.median(d[:, 16:])), 2)
-    5.0
-    """
-    from sswjax.params import check_params
-
-    params = Params() if params is None else check_params(params)
-    left, right = checked_pair(left, right, ndisp, params)
-    if buckets is None:
-        return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
-    height, width = left.shape[:2]
-    padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
-    left, right = pad_to_bucket(left, right, padded_h, padded_w)
-    disparity = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=padded_ndisp,
-                              valid_ndisp=jnp.int32(ndisp))
-    return np.asarray(disparity)[:height, :width]

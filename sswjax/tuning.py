@@ -1,7 +1,7 @@
 """Differentiable objective for the gradient-based parameter search (optax).
 
 The search runs the *same* functions as inference: :func:`sswjax.pipeline.aggregated_cost`
-(cost, SLIC, segment-side-window aggregation), then :func:`sswjax.selection.soft_argmin`
+(cost, SLIC, segment-side-window aggregation), then :func:`sswjax.stages.selection.soft_argmin`
 in place of the winner-takes-all of :func:`sswjax.pipeline.select_and_refine`. The loss is a
 smooth L1 (Huber, delta 1 px) against the ground truth over valid non-occluded pixels.
 
@@ -44,7 +44,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 from sswjax.batching import BATCH_AXIS, device_mesh, pad_batch
 from sswjax.params import DynamicParams, Params, StaticParams
 from sswjax.pipeline import aggregated_cost
-from sswjax.selection import soft_argmin
+from sswjax.stages.selection import soft_argmin
 
 WEIGHTS = ("tad_weight", "gradient_weight", "census_weight")
 TRUNCATION_RANGES = {"tad_truncation": (0.002, 0.3), "gradient_truncation": (0.005, 1.0)}
@@ -222,7 +222,7 @@ def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: Dynam
 def random_crops(scenes, rng: np.random.Generator, *, batch: int, height: int, width: int):
     """A batch of fixed-size random crops ``(lefts, rights, gts, valids, scene_ndisps)``.
 
-    ``scenes`` are :class:`~sswjax.datasets.StereoScene` with float32 images (see
+    ``scenes`` are :class:`~sswjax.data.datasets.StereoScene` with float32 images (see
     :func:`prepare_scene`). Crops are drawn uniformly over scenes, then positions.
     """
     out = [[], [], [], [], []]
@@ -246,7 +246,7 @@ def random_crops(scenes, rng: np.random.Generator, *, batch: int, height: int, w
 
 def prepare_scene(scene):
     """A scene with float32 ``[0, 1]`` images, as the pipeline takes them."""
-    from sswjax.pipeline import prepare_pair
+    from sswjax.api import prepare_pair
 
     left, right = prepare_pair(scene.left, scene.right)
     return scene._replace(left=left, right=right)
@@ -264,7 +264,7 @@ def crop_segments(n_segments: int, crop_area: int, image_area: float) -> int:
 
 def save_checkpoint(path, *, raw, opt_state, step: int, rng: np.random.Generator, extra=None):
     """Pickle raw params, optimizer state, step and RNG state (atomically)."""
-    from sswjax.io import atomic_output
+    from sswjax.data.io import atomic_output
 
     state = {
         "raw": jax.tree_util.tree_map(np.asarray, raw),

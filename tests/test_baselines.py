@@ -1,4 +1,4 @@
-"""Tests for sswjax.baselines against NumPy references (float64, tiny arrays, plain loops)."""
+"""Tests for sswjax.stages.baselines against NumPy references (float64, tiny arrays, plain loops)."""
 
 import functools
 
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.baselines import (
+from sswjax.stages.baselines import (
     BASELINE_AGGREGATORS,
     bilateral_filter,
     box_filter,

@@ -13,7 +13,7 @@ import pytest
 
 import sswjax
 from sswjax.batching import iter_match_scenes, match_batch, match_scenes
-from sswjax.pipeline import bucket_shape
+from sswjax.api import bucket_shape
 
 PARAMS = sswjax.Params().replace(n_segments=16)
 

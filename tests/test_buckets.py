@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.pipeline import ShapeBuckets, bucket_shape, ssw_disparity
+from sswjax.api import ShapeBuckets, bucket_shape
+from sswjax.pipeline import ssw_disparity
 
 BUCKETS = ShapeBuckets(size_step=64, ndisp_step=16)
 

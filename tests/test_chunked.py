@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from sswjax.params import Params
-from sswjax.pipeline import prepare_pair, ssw_disparity
+from sswjax.api import prepare_pair
+from sswjax.pipeline import ssw_disparity
 
 NDISP = 12
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sswjax.cli import main
-from sswjax.io import read_pfm, write_pfm
+from sswjax.data.io import read_pfm, write_pfm
 
 NDISP = 12
 

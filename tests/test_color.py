@@ -1,4 +1,4 @@
-"""Tests for sswjax.color against scikit-image and NumPy references."""
+"""Tests for sswjax.stages.color against scikit-image and NumPy references."""
 
 import jax
 import jax.numpy as jnp
@@ -7,7 +7,7 @@ import pytest
 from skimage import color as skcolor
 from skimage import data
 
-from sswjax.color import rgb_to_gray, rgb_to_lab
+from sswjax.stages.color import rgb_to_gray, rgb_to_lab
 
 
 @pytest.fixture(scope="module")

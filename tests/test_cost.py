@@ -1,11 +1,11 @@
-"""Tests for sswjax.cost against brute-force NumPy references (tiny arrays, plain loops)."""
+"""Tests for sswjax.stages.cost against brute-force NumPy references (tiny arrays, plain loops)."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.cost import (
+from sswjax.stages.cost import (
     census_transform,
     cost_volume,
     hamming_distance,

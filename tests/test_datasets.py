@@ -2,7 +2,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.datasets import (
+from sswjax.data.datasets import (
     StereoScene,
     find_data_root,
     load_middeval3,
@@ -10,7 +10,7 @@ from sswjax.datasets import (
     read_calib,
     scene_dirs,
 )
-from sswjax.io import InputError, write_pfm
+from sswjax.data.io import InputError, write_pfm
 
 CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
 cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]

@@ -1,4 +1,4 @@
-"""Tests for sswjax.download against a local HTTP server (no internet needed)."""
+"""Tests for sswjax.data.download against a local HTTP server (no internet needed)."""
 
 import hashlib
 import http.server
@@ -14,8 +14,8 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.datasets import load_middeval3
-from sswjax.download import (
+from sswjax.data.datasets import load_middeval3
+from sswjax.data.download import (
     MIDDEVAL3_ARCHIVES,
     DownloadError,
     download_file,
@@ -23,7 +23,7 @@ from sswjax.download import (
     extract_zip,
     middeval3_urls,
 )
-from sswjax.io import InputError, write_pfm
+from sswjax.data.io import InputError, write_pfm
 
 # ----------------------------------------------------------------------------- local server
 

@@ -10,10 +10,10 @@ import pytest
 
 from sswjax.batching import iter_match_scenes
 from sswjax.cli import main
-from sswjax.evaluation import PAPER_TABLE1, SceneResult, summary, table1_markdown
-from sswjax.io import read_pfm, write_pfm
-from sswjax.methods import METHOD_NAMES, make_method, submission_name
-from sswjax.metrics import weighted_average
+from sswjax.evaluation.runner import PAPER_TABLE1, SceneResult, summary, table1_markdown
+from sswjax.data.io import read_pfm, write_pfm
+from sswjax.evaluation.methods import METHOD_NAMES, make_method, submission_name
+from sswjax.evaluation.metrics import weighted_average
 
 
 def test_paper_table1_averages_match_the_paper():
@@ -96,7 +96,7 @@ def test_evaluate_unknown_method(tiny_middeval3, capsys):
 
 def test_sgbm_peer_is_dense_and_recovers_a_shift():
     pytest.importorskip("cv2")
-    from sswjax.peers import sgbm_disparity
+    from sswjax.evaluation.peers import sgbm_disparity
 
     rng = np.random.default_rng(2)
     right = (rng.random((40, 80, 3)) * 255).astype(np.uint8)
@@ -116,7 +116,7 @@ def test_evaluate_figure(tiny_middeval3, tmp_path):
 
 
 def test_tables_without_masks_show_all_only():
-    from sswjax.evaluation import markdown_table, summary_markdown
+    from sswjax.evaluation.runner import markdown_table, summary_markdown
 
     rows = [SceneResult(s, np.zeros((2, 2), np.float32),
                         {"all": {"bad2.0": v, "bad1.0": v, "bad0.5": v}}, 0.1)
@@ -129,7 +129,7 @@ def test_tables_without_masks_show_all_only():
 def test_evaluate_bucket_runs_ssw_scenes_through_the_sharded_grouped_path(tiny_middeval3, tmp_path,
                                                                           monkeypatch):
     import sswjax
-    import sswjax.methods
+    import sswjax.evaluation.methods
 
     params = sswjax.Params().replace(n_segments=16)
     sswjax.save_params(tmp_path / "tiny.json", params)
@@ -139,7 +139,7 @@ def test_evaluate_bucket_runs_ssw_scenes_through_the_sharded_grouped_path(tiny_m
         batches.append(list(ndisps))
         return iter_match_scenes(pairs, ndisps, *args, **kwargs)
 
-    monkeypatch.setattr(sswjax.methods, "iter_match_scenes", spy)
+    monkeypatch.setattr(sswjax.evaluation.methods, "iter_match_scenes", spy)
     out = tmp_path / "out"
     argv = ["evaluate", "--data", str(tiny_middeval3), "--methods", "ssw", "--params",
             str(tmp_path / "tiny.json"), "--bucket", "-o", str(out)]

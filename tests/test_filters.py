@@ -1,4 +1,4 @@
-"""Tests for sswjax.filters against brute-force NumPy references (tiny arrays, plain loops)."""
+"""Tests for sswjax.stages.filters against brute-force NumPy references (tiny arrays, plain loops)."""
 
 import functools
 
@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.filters import (
+from sswjax.stages.filters import (
     median_filter,
     median_of_stack,
     select_side_window_mean,

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sswjax import io
-from sswjax.io import (
+from sswjax.data import io
+from sswjax.data.io import (
     InputError,
     atomic_output,
     disparity_to_rgb,

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from sswjax.metrics import MIDDEVAL3_TRAINING_WEIGHTS, evaluate_disparity, weighted_average
+from sswjax.evaluation.metrics import MIDDEVAL3_TRAINING_WEIGHTS, evaluate_disparity, weighted_average
 
 INF = np.inf
 

@@ -217,7 +217,7 @@ def test_grad_through_dynamic_params():
 
 def test_grad_through_cost_volume_wrt_weights():
     # d/d alpha of sum(C) is the sum of the normalised TAD term: compare with finite differences
-    from sswjax.cost import cost_volume
+    from sswjax.stages.cost import cost_volume
 
     rng = np.random.default_rng(0)
     left = jnp.asarray(rng.random((6, 10, 3)), jnp.float32)

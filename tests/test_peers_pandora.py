@@ -8,7 +8,7 @@ pytest.importorskip("pandora_plugin_libsgm")
 
 
 def test_pandora_peer_is_dense_and_recovers_a_shift():
-    from sswjax.peers import pandora_disparity
+    from sswjax.evaluation.peers import pandora_disparity
 
     rng = np.random.default_rng(0)
     right = rng.integers(0, 256, size=(40, 80, 3), dtype=np.uint8)
@@ -22,8 +22,8 @@ def test_pandora_peer_is_dense_and_recovers_a_shift():
 
 
 def test_pandora_is_a_registered_peer():
-    from sswjax.methods import METHOD_NAMES, make_method
-    from sswjax.peers import pandora_disparity
+    from sswjax.evaluation.methods import METHOD_NAMES, make_method
+    from sswjax.evaluation.peers import pandora_disparity
 
     assert "pandora" in METHOD_NAMES
     assert make_method("pandora") is pandora_disparity

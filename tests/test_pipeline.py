@@ -8,7 +8,7 @@ from skimage import data
 
 import sswjax
 from sswjax import Params, ssw_disparity
-from sswjax.color import rgb_to_gray
+from sswjax.stages.color import rgb_to_gray
 
 H, W, SHIFT, NDISP = 48, 96, 7, 16
 # pixels whose match lies well inside the right image (aggregation / census support included)
@@ -116,7 +116,7 @@ def test_match_accepts_uint8_uint16_float_and_rgba(pair, integer_params):
 
 
 def test_prepare_pair_conversions():
-    from sswjax.pipeline import prepare_pair
+    from sswjax.api import prepare_pair
 
     rng = np.random.default_rng(8)
     rgb8 = rng.integers(0, 256, size=(5, 6, 3), dtype=np.uint8)

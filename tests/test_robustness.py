@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 import sswjax
 from sswjax import Params
 from sswjax.cli import main
-from sswjax.io import InputError, read_image, read_pfm, write_pfm
+from sswjax.data.io import InputError, read_image, read_pfm, write_pfm
 from sswjax.params import check_params
 
 H, W, SHIFT, NDISP = 24, 40, 3, 8
@@ -220,7 +220,7 @@ def test_debug_shows_the_traceback(files, tmp_path):
     debug = subprocess.run(CLI + ["--debug"] + argv, capture_output=True, text=True, timeout=120)
     assert debug.returncode == 1
     assert debug.stderr.startswith("Traceback (most recent call last):")
-    assert "sswjax.io.InputError: image not found" in debug.stderr
+    assert "sswjax.data.io.InputError: image not found" in debug.stderr
 
 
 # ============================================================================ 1. bad input: API
@@ -472,7 +472,7 @@ def test_match_interrupted_keeps_existing_output(files, tmp_path, capsys, monkey
 @pytest.fixture()
 def fake_method(monkeypatch):
     """A method "fake" without JAX: disparity 3 everywhere; counts its calls per scene width."""
-    from sswjax import methods
+    from sswjax.evaluation import methods
 
     calls = []
 

@@ -1,4 +1,4 @@
-"""Tests for sswjax.segments: SLIC superpixels and per-segment means.
+"""Tests for sswjax.stages.segments: SLIC superpixels and per-segment means.
 
 SLIC quality is compared with scikit-image's SLIC on a real image with two NumPy metrics:
 
@@ -22,7 +22,7 @@ from scipy import ndimage
 from skimage import color as skcolor
 from skimage import data, filters, segmentation
 
-from sswjax.segments import segment_mean, slic, slic_grid_shape
+from sswjax.stages.segments import segment_mean, slic, slic_grid_shape
 
 N_SEGMENTS = 400
 

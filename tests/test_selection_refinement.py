@@ -1,11 +1,11 @@
-"""Tests for sswjax.selection and sswjax.refinement against NumPy references and hand cases."""
+"""Tests for sswjax.stages.selection and sswjax.stages.refinement against NumPy references and hand cases."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.refinement import fill_background, fill_invalid, left_right_consistency, right_cost_volume
-from sswjax.selection import fold_winners, no_winners, soft_argmin, subpixel_parabola, winner_takes_all
+from sswjax.stages.refinement import fill_background, fill_invalid, left_right_consistency, right_cost_volume
+from sswjax.stages.selection import fold_winners, no_winners, soft_argmin, subpixel_parabola, winner_takes_all
 
 # ---------------------------------------------------------------------------------------------
 # selection

@@ -132,7 +132,7 @@ def test_checkpoint_round_trip(tmp_path):
 
 
 def test_random_crops_shapes():
-    from sswjax.datasets import StereoScene
+    from sswjax.data.datasets import StereoScene
 
     rng = np.random.default_rng(0)
     image = rng.random((30, 60, 3)).astype(np.float32)

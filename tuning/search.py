@@ -37,10 +37,10 @@ import optax
 from tqdm import tqdm
 
 import sswjax
-import sswjax.datasets
+import sswjax.data.datasets
 from sswjax import tuning
-from sswjax.evaluation import evaluate_scenes, summary
-from sswjax.metrics import evaluate_disparity, weighted_average
+from sswjax.evaluation.runner import evaluate_scenes, summary
+from sswjax.evaluation.metrics import evaluate_disparity, weighted_average
 from sswjax.params import load_params, save_params
 from sswjax.pipeline import ssw_disparity
 
@@ -57,7 +57,7 @@ def bucket_of(scene) -> int:
 
 
 def write_json(path, data):
-    from sswjax.io import atomic_output
+    from sswjax.data.io import atomic_output
 
     with atomic_output(path) as tmp, open(tmp, "w") as handle:
         json.dump(data, handle, indent=1)
@@ -210,8 +210,8 @@ def main(argv=None):
     t0 = time.perf_counter()
 
     hand = load_params(args.init)
-    root = sswjax.datasets.find_data_root()
-    raw_scenes = sswjax.datasets.load_middeval3(root)
+    root = sswjax.data.datasets.find_data_root()
+    raw_scenes = sswjax.data.datasets.load_middeval3(root)
     scenes = [tuning.prepare_scene(s) for s in raw_scenes]
     names = [s.name for s in scenes]
     order = np.random.default_rng(args.seed).permutation(len(scenes))

@@ -8,7 +8,7 @@ batch: every slice is filtered with the same guide-derived weights, so a cost vo
 ``(D, H, W)`` is filtered in one vectorised pass. Guides are the left image, float32
 ``(H, W, C)`` (or ``(H, W)`` for gray) with values in [0, 1]. Every window is the square
 ``(2 r + 1) x (2 r + 1)`` centred on the pixel; borders are edge-replicated (each window sum
-pads its own input by ``r``), as in :mod:`sswjax.filters`. Outputs are float32 with the shape
+pads its own input by ``r``), as in :mod:`sswjax.stages.filters`. Outputs are float32 with the shape
 of the filtered input.
 
 All functions are pure and ``jax.jit``-able with ``radius`` (and ``iterations``) static; the
@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_map, check_positive_int, check_rank
-from sswjax.filters import edge_pad, median_filter
+from sswjax.stages.filters import edge_pad, median_filter
 
 __all__ = [
     "BASELINE_AGGREGATORS",
@@ -270,7 +270,7 @@ def iterated_guided_filter(
     filtering of the cost volume: ``q_0 = x``, ``q_{t+1} = GF_I(q_t)`` with the same left image
     ``I`` as guide in every pass (He, Sun & Tang, "Guided Image Filtering", TPAMI 2013; cost
     volume filtering as in Hosni et al., TPAMI 2013). The guide is not updated (unlike the
-    joint side-window filtering of :func:`sswjax.filters.side_window_box_filter`), and its
+    joint side-window filtering of :func:`sswjax.stages.filters.side_window_box_filter`), and its
     statistics are computed once and shared by all passes. ``iterations=1`` is
     :func:`guided_filter`.
 
@@ -392,7 +392,7 @@ def median_cost_filter(x: jax.Array, *, radius: int = 2) -> jax.Array:
 
     The running median (Tukey, "Exploratory Data Analysis", 1977) applied to each disparity
     slice independently, as the MF baseline of the SSW paper; a robust, unguided alternative
-    to the box mean. Exact, through :func:`sswjax.filters.median_filter` (sorting network,
+    to the box mean. Exact, through :func:`sswjax.stages.filters.median_filter` (sorting network,
     edge-replicated borders).
 
     Parameters

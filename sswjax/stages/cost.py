@@ -26,7 +26,7 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
-from sswjax.color import rgb_to_gray
+from sswjax.stages.color import rgb_to_gray
 
 _WORD_BITS = 32
 

@@ -19,9 +19,9 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_rank
-from sswjax.baselines import BASELINE_AGGREGATORS, BASELINE_RADIUS
-from sswjax.filters import side_window_box_filter
-from sswjax.segments import segment_mean
+from sswjax.stages.baselines import BASELINE_AGGREGATORS, BASELINE_RADIUS
+from sswjax.stages.filters import side_window_box_filter
+from sswjax.stages.segments import segment_mean
 
 
 def segment_cost(cost: jax.Array, labels: jax.Array, *, num_segments: int) -> jax.Array:
@@ -66,7 +66,7 @@ def aggregate_cost(
         Side-window radius and number of filtering passes.
     window_selection : {"guide", "slice"}
     method : {"ssw", "box", "bf", "gf", "igf", "mf"}
-        ``"ssw"``, or a baseline of :mod:`sswjax.baselines` that replaces the whole step (segment
+        ``"ssw"``, or a baseline of :mod:`sswjax.stages.baselines` that replaces the whole step (segment
         term included) with its own radius (``BASELINE_RADIUS``).
     labels : int32 (H, W), optional
         Superpixels; without them (or with ``num_segments=0``) the segment term is off.

@@ -1,10 +1,10 @@
 """Named stereo methods for evaluation: SSW, its ablations, the baseline aggregators and peers.
 
 Conventions: a method is a callable ``(left, right, ndisp) -> float32 (H, W)`` dense disparity
-taking images as read from disk (see :mod:`sswjax.evaluation`). SSW variants are the pipeline
+taking images as read from disk (see :mod:`sswjax.evaluation.runner`). SSW variants are the pipeline
 with some parameters changed (:data:`SSW_VARIANTS`); the baselines replace only the aggregation
 step (Table 1 of the paper: BF, GF, iGF, MF); peers are other projects' matchers
-(:mod:`sswjax.peers`). With shape buckets an SSW variant is a :class:`BucketedSSW`, which
+(:mod:`sswjax.evaluation.peers`). With shape buckets an SSW variant is a :class:`BucketedSSW`, which
 :func:`sswjax.evaluation.evaluate_scenes` runs grouped by bucket and sharded over all JAX devices.
 """
 
@@ -17,8 +17,8 @@ import numpy as np
 
 from sswjax.batching import iter_match_scenes
 from sswjax.params import Params
-from sswjax.peers import pandora_disparity, sgbm_disparity
-from sswjax.pipeline import ShapeBuckets, match
+from sswjax.evaluation.peers import pandora_disparity, sgbm_disparity
+from sswjax.api import ShapeBuckets, match
 
 SSW_VARIANTS: dict[str, dict] = {
     "ssw": {},

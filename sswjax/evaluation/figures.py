@@ -1,6 +1,6 @@
 """Comparison figure of evaluated methods (needs matplotlib, extra ``[bench]``).
 
-Conventions: scenes are :class:`sswjax.datasets.StereoScene`; results map a method name to its
+Conventions: scenes are :class:`sswjax.data.datasets.StereoScene`; results map a method name to its
 per-scene :class:`sswjax.evaluation.SceneResult` in the same scene order.
 """
 
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax.datasets import StereoScene
-from sswjax.evaluation import SceneResult
-from sswjax.io import atomic_output, disparity_to_rgb
+from sswjax.data.datasets import StereoScene
+from sswjax.evaluation.runner import SceneResult
+from sswjax.data.io import atomic_output, disparity_to_rgb
 
 
 def error_map(disparity: np.ndarray, ground_truth: np.ndarray, *, threshold: float = 2.0) -> np.ndarray:

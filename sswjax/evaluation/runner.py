@@ -4,7 +4,7 @@ Conventions: a *method* is a callable ``(left, right, ndisp) -> float32 (H, W)``
 (NumPy in, NumPy out, images as read from disk); a :class:`BatchedMethod` can also run many
 scenes together (e.g. grouped by shape and sharded over devices), and its per-scene time is
 then its share of a step (see :meth:`BatchedMethod.match_many`). Metrics are those of
-:mod:`sswjax.metrics` (percentages for bad-t and invalid, pixels for avgerr/rms/a90).
+:mod:`sswjax.evaluation.metrics` (percentages for bad-t and invalid, pixels for avgerr/rms/a90).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from sswjax.datasets import StereoScene
-from sswjax.metrics import evaluate_disparity, weighted_average
+from sswjax.data.datasets import StereoScene
+from sswjax.evaluation.metrics import evaluate_disparity, weighted_average
 
 THRESHOLDS = (0.5, 1.0, 2.0)
 REGIONS = ("nonocc", "all")
@@ -230,7 +230,7 @@ def summary_markdown(results: Mapping[str, Sequence[SceneResult]]) -> str:
 
 def write_metrics_csv(path: str | Path, results: Mapping[str, Sequence[SceneResult]]) -> None:
     """Per-scene metrics, one row per (method, scene, region), written atomically."""
-    from sswjax.io import atomic_output
+    from sswjax.data.io import atomic_output
 
     rows = [
         {"method": m, "scene": r.scene, "region": region, "seconds": f"{r.seconds:.3f}",

@@ -2,7 +2,7 @@
 
 Array conventions
 -----------------
-* ``left``/``right``: images exactly as read by :func:`sswjax.io.read_image`, ``(H, W, 3)``
+* ``left``/``right``: images exactly as read by :func:`sswjax.data.io.read_image`, ``(H, W, 3)``
   (or ``(H, W)``) ``uint8`` for MiddEval3.
 * ``ground_truth``: ``float32`` ``(H, W)`` left disparity in pixels, ``inf`` = unknown.
 * ``mask``: ``uint8`` ``(H, W)``; 255 = non-occluded, 128 = occluded, 0 = unknown.
@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sswjax.io import InputError, read_image, read_pfm
+from sswjax.data.io import InputError, read_image, read_pfm
 
 __all__ = [
     "StereoScene",

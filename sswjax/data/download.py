@@ -9,7 +9,7 @@ test splits, and the training ground truth) and unpacks them into ``dest``::
     dest/MiddEval3/trainingR/<Scene>/im0.png, im1.png, calib.txt, disp0GT.pfm, mask0nocc.png
     dest/MiddEval3/testR/<Scene>/im0.png, im1.png, calib.txt
 
-which is what :func:`sswjax.datasets.load_middeval3` reads (pass it ``dest / "MiddEval3"``).
+which is what :func:`sswjax.data.datasets.load_middeval3` reads (pass it ``dest / "MiddEval3"``).
 
 Resume and verification
 -----------------------
@@ -27,7 +27,7 @@ their ``Content-Length`` and the zip CRCs only; pass ``sha256`` to :func:`downlo
 a stronger check.
 
 Every failure raises :class:`DownloadError` (network, size, checksum) or
-:class:`~sswjax.io.InputError` (local files, corrupt or unsafe archives) with a one-line
+:class:`~sswjax.data.io.InputError` (local files, corrupt or unsafe archives) with a one-line
 message naming the URL or file; :class:`DownloadError` is a subclass of ``InputError``.
 """
 
@@ -47,7 +47,7 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 
 from tqdm import tqdm
 
-from sswjax.io import InputError, atomic_output
+from sswjax.data.io import InputError, atomic_output
 
 __all__ = [
     "DEFAULT_BASE_URL",
@@ -507,7 +507,7 @@ def download_middeval3(
     Returns
     -------
     pathlib.Path
-        ``dest / "MiddEval3"``, ready for :func:`sswjax.datasets.load_middeval3`.
+        ``dest / "MiddEval3"``, ready for :func:`sswjax.data.datasets.load_middeval3`.
 
     Raises
     ------
@@ -522,7 +522,7 @@ def download_middeval3(
     Examples
     --------
     >>> root = download_middeval3("data", resolution="Q")  # doctest: +SKIP
-    >>> from sswjax.datasets import load_middeval3  # doctest: +SKIP
+    >>> from sswjax.data.datasets import load_middeval3  # doctest: +SKIP
     >>> len(load_middeval3(root, split="trainingQ"))  # doctest: +SKIP
     15
     """

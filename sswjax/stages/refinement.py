@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_rank, check_same_shape
-from sswjax.filters import median_filter
+from sswjax.stages.filters import median_filter
 
 
 def right_cost_volume(cost: jax.Array, *, disparities: jax.Array | None = None) -> jax.Array:

@@ -40,7 +40,7 @@ from sswjax._checks import (
     check_rank,
     check_same_shape,
 )
-from sswjax.color import rgb_to_lab
+from sswjax.stages.color import rgb_to_lab
 
 __all__ = ["segment_mean", "slic", "slic_grid_shape"]
 
