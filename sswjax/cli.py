@@ -242,7 +242,7 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_download(args) -> int:
-    """``sswjax download middeval3``: fetch and unpack the Middlebury MiddEval3 archives."""
+    """``sswjax download middlebury``: fetch and unpack the Middlebury MiddEval3 archives."""
     from sswjax.data.download import download_middeval3
 
     root = download_middeval3(args.dest, resolution=args.resolution, keep_archives=args.keep_archives)
