@@ -151,7 +151,12 @@ def _saved_scene_result(folder: Path, tag: str, scene):
 
 
 def cmd_evaluate(args) -> int:
-    """``sswjax evaluate``: methods over a MiddEval3 folder; tables, CSV, figure, disparities.
+    """``sswjax evaluate``: methods over a data folder; tables, CSV, figure, disparities.
+
+    The folder's layout (:func:`sswjax.data.layouts.detect_layout`: MiddEval3, KITTI, older
+    Middlebury) sets the metrics and their summary: MiddEval3's weighted averages and Table 1,
+    elsewhere means over scenes with bad 3.0 (and D1 for KITTI). ``--ndisp`` replaces every
+    scene's disparity count.
 
     With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
     Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
@@ -161,10 +166,13 @@ def cmd_evaluate(args) -> int:
     """
     from tqdm import tqdm
 
-    from sswjax.data.datasets import find_data_root, load_middeval3
+    from sswjax.data.datasets import find_data_root
+    from sswjax.data.layouts import detect_layout, load_scenes
     from sswjax.evaluation.runner import (
+        SCORINGS,
         iter_evaluate_scenes,
         markdown_table,
+        rescore,
         summary_markdown,
         table1_markdown,
         write_metrics_csv,
@@ -180,8 +188,13 @@ def cmd_evaluate(args) -> int:
         raise ValueError(f"no method given in --methods {args.methods!r}")
     buckets = ShapeBuckets() if args.bucket else None
     runners = {name: make_method(name, _params(args.params), buckets=buckets) for name in methods}
-    scenes = load_middeval3(find_data_root(args.data), split=args.split, scenes=args.scenes)
-    for attribute, file in (("ground_truth", "disp0GT.pfm"), ("mask", "mask0nocc.png")):
+    root = find_data_root(args.data)
+    layout = detect_layout(root, split=args.split)
+    scoring = SCORINGS[layout.scoring]
+    scenes = load_scenes(root, layout=layout, split=args.split, scenes=args.scenes, ndisp=args.ndisp)
+    required = [("ground_truth", layout.ground_truth or "disp0GT.pfm")]
+    required += [("mask", "mask0nocc.png")] if layout.kind == "middeval3" else []
+    for attribute, file in required:
         lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
         if lacking:
             raise ValueError(f"cannot score scene(s) without {file}: {', '.join(lacking)} "
@@ -201,13 +214,16 @@ def cmd_evaluate(args) -> int:
                 for i, scene in enumerate(scenes):
                     if args.resume:
                         rows[i], note = _saved_scene_result(folders[i], tag, scene)
+                        if rows[i] is not None and layout.kind != "middeval3":
+                            rows[i] = rescore(rows[i], scene, scoring=scoring)
                         if note:
                             bar.write(f"{name} {scene.name}: {note}", file=sys.stderr)
                 resumed = sum(row is not None for row in rows)
                 saved += resumed
                 bar.update(resumed)
                 pending = [i for i, row in enumerate(rows) if row is None]
-                for j, result in iter_evaluate_scenes(method, [scenes[i] for i in pending]):
+                for j, result in iter_evaluate_scenes(method, [scenes[i] for i in pending],
+                                                      scoring=scoring):
                     i = pending[j]
                     if folders[i] is not None:
                         _write_scene_result(folders[i], tag, result)
@@ -223,10 +239,15 @@ def cmd_evaluate(args) -> int:
                               "and --resume continues)") from None
         raise Interrupted(f"interrupted; {saved} of {total} scene results are saved in {args.output}; "
                           f"continue with: {_resume_command(getattr(args, 'argv', sys.argv[1:]))}") from None
+    if layout.kind == "middeval3":
+        heads = ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)",
+                 summary_markdown(results),
+                 "## Table 1 layout, bad 2.0 (ours) beside the paper's figures", table1_markdown(results)]
+    else:
+        heads = [f"## Means over {len(scenes)} {layout.name} scenes (no weights; bad-pixel %"
+                 f"{', KITTI D1 %' if scoring.d1 else ''})", summary_markdown(results, scoring=scoring)]
     text = "\n\n".join(
-        ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)", summary_markdown(results),
-         "## Table 1 layout, bad 2.0 (ours) beside the paper's figures", table1_markdown(results)]
-        + [f"## {name}\n\n{markdown_table(rows)}" for name, rows in results.items()]
+        heads + [f"## {name}\n\n{markdown_table(rows, scoring=scoring)}" for name, rows in results.items()]
     )
     print(text)
     if args.output is not None:
@@ -273,9 +294,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(run=cmd_demo)
 
     evaluate = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
-    evaluate.add_argument("--data", type=Path, help="MiddEval3 folder (default: $SSWJAX_DATA, "
+    evaluate.add_argument("--data", type=Path, help="data folder: MiddEval3, KITTI 2012/2015 or "
+                          "Middlebury 2001/2003/2005/2006, told by its files (default: $SSWJAX_DATA, "
                           "then ../shared/data/MiddEval3 beside the project)")
     evaluate.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
+    evaluate.add_argument("--ndisp", type=int,
+                          help="disparities searched in every scene, 0..N-1 (default: calib.txt "
+                               "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2)")
     evaluate.add_argument("--scenes", nargs="+", help="only these scenes")
     evaluate.add_argument("--methods", default="ssw",
                           help="comma-separated: ssw, bf, gf, igf, mf, box, sgbm, ablations "

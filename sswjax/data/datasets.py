@@ -10,6 +10,8 @@ Array conventions
 A scene folder holds ``im0.png``, ``im1.png`` and ``calib.txt`` (required) and optionally
 ``disp0GT.pfm`` and ``mask0nocc.png``. Only ``ndisp`` is taken from the calibration: the
 ground-truth ``vmin``/``vmax`` are deliberately never used, since a method must not know them.
+The other benchmarks (KITTI, older Middlebury sets) load into the same :class:`StereoScene`
+through :mod:`sswjax.data.layouts`, which also tells a folder's layout.
 """
 
 from __future__ import annotations
@@ -128,7 +130,7 @@ def find_data_root(data: str | os.PathLike | None = None) -> Path:
     env = os.environ.get("SSWJAX_DATA")
     if env:
         return Path(env).expanduser()
-    project_root = Path(__file__).resolve().parent.parent
+    project_root = Path(__file__).resolve().parents[2]  # sswjax/data/datasets.py -> project
     return project_root.parent / "shared" / "data" / "MiddEval3"
 
 

@@ -13,7 +13,8 @@ Rules
 * A non-finite prediction is *invalid*: it stays in the denominator, counts as bad for every
   threshold, is reported as ``invalid`` and is left out of ``avgerr`` and ``rms``.
 * Valid predictions are clipped to ``[0, ndisp]`` before comparison.
-* ``bad<t>`` = percentage with ``|d - gt| > t`` (strict) or invalid; ``invalid`` =
+* ``bad<t>`` = percentage with ``|d - gt| > t`` (strict) or invalid; ``D1`` (KITTI, on
+  request) = percentage with ``|d - gt| > 3`` and ``|d - gt| > 0.05 gt`` or invalid; ``invalid`` =
   percentage invalid; ``avgerr``/``rms`` = mean / root-mean-square of ``|d - gt|`` over valid
   pixels; ``a90`` = smallest error ``e`` such that at least 90 % of the evaluated pixels have
   error ``<= e``, with invalid pixels counted as infinite error (so ``a90`` is ``inf`` when
@@ -37,7 +38,13 @@ from sswjax._checks import (
     check_same_shape,
 )
 
-__all__ = ["MIDDEVAL3_TRAINING_WEIGHTS", "evaluate_disparity", "weighted_average"]
+__all__ = ["D1_FRACTION", "D1_PIXELS", "MIDDEVAL3_TRAINING_WEIGHTS", "evaluate_disparity",
+           "weighted_average"]
+
+#: KITTI's D1 outlier: an error above this many pixels *and* above :data:`D1_FRACTION` of the
+#: true disparity (the devkit's ``tau = [3, 0.05]``).
+D1_PIXELS = 3.0
+D1_FRACTION = 0.05
 
 #: Weights of the MiddEval3 training scenes in the official averages.
 MIDDEVAL3_TRAINING_WEIGHTS: dict[str, float] = {
@@ -52,14 +59,23 @@ MIDDEVAL3_TRAINING_WEIGHTS: dict[str, float] = {
 }  # fmt: skip
 
 
-def _region_metrics(error: np.ndarray, thresholds: Sequence[float]) -> dict[str, float]:
-    """Metrics of a 1-D array of absolute errors where ``inf`` marks invalid predictions."""
-    keys = [f"bad{t}" for t in thresholds] + ["invalid", "avgerr", "rms", "a90"]
+def _region_metrics(
+    error: np.ndarray, thresholds: Sequence[float], ground_truth: np.ndarray | None
+) -> dict[str, float]:
+    """Metrics of a 1-D array of absolute errors where ``inf`` marks invalid predictions.
+
+    ``ground_truth`` (1-D, same size) adds ``"D1"``; ``None`` leaves it out.
+    """
+    d1 = [] if ground_truth is None else ["D1"]
+    keys = [f"bad{t}" for t in thresholds] + d1 + ["invalid", "avgerr", "rms", "a90"]
     n = error.size
     if n == 0:
         return dict.fromkeys(keys, float("nan"))
     valid = error[np.isfinite(error)]
     out = {f"bad{t}": 100.0 * int(np.count_nonzero(error > t)) / n for t in thresholds}
+    if ground_truth is not None:
+        bad = (error > D1_PIXELS) & (error > D1_FRACTION * ground_truth)
+        out["D1"] = 100.0 * int(np.count_nonzero(bad)) / n
     out["invalid"] = 100.0 * (n - valid.size) / n
     out["avgerr"] = float(valid.mean()) if valid.size else float("nan")
     out["rms"] = float(np.sqrt(np.mean(valid**2))) if valid.size else float("nan")
@@ -74,6 +90,7 @@ def evaluate_disparity(
     mask: np.ndarray | None = None,
     ndisp: int,
     thresholds: Sequence[float] = (0.5, 1.0, 2.0, 4.0),
+    d1: bool = False,
 ) -> dict[str, dict[str, float]]:
     """Evaluate a disparity map against ground truth with the MiddEval3 rules.
 
@@ -89,13 +106,15 @@ def evaluate_disparity(
         Disparity range; valid predictions are clipped to ``[0, ndisp]``.
     thresholds : sequence of float
         Error thresholds in pixels, each reported as ``f"bad{float(t)}"``.
+    d1 : bool
+        Also report KITTI's ``"D1"`` (after the ``bad`` keys; see the module docstring).
 
     Returns
     -------
     dict
         ``{"all": metrics}`` plus ``"nonocc"`` if ``mask`` is given, where ``metrics`` maps
-        ``"bad0.5"``, ``"bad1.0"``, ... and ``"invalid"`` to percentages and ``"avgerr"``,
-        ``"rms"``, ``"a90"`` to pixels (see the module docstring).
+        ``"bad0.5"``, ``"bad1.0"``, ... (then ``"D1"`` if asked) and ``"invalid"`` to
+        percentages and ``"avgerr"``, ``"rms"``, ``"a90"`` to pixels (see the module docstring).
 
     Raises
     ------
@@ -133,10 +152,11 @@ def evaluate_disparity(
     error = np.full(d.shape, np.inf)
     error[valid] = np.abs(np.clip(d[valid], 0.0, ndisp) - gt[valid])
 
-    result = {"all": _region_metrics(error[known], thresholds)}
-    if mask is not None:
-        result["nonocc"] = _region_metrics(error[known & (mask == 255)], thresholds)
-    return result
+    regions = {"all": known} if mask is None else {"all": known, "nonocc": known & (mask == 255)}
+    return {
+        region: _region_metrics(error[where], thresholds, gt[where] if d1 else None)
+        for region, where in regions.items()
+    }
 
 
 def weighted_average(

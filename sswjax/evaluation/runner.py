@@ -1,10 +1,13 @@
-"""Running a stereo method over MiddEval3 scenes and summarising it with the official weights.
+"""Running a stereo method over scenes and summarising it: MiddEval3 with the official weights,
+the other layouts (:mod:`sswjax.data.layouts`) with plain means over scenes.
 
 Conventions: a *method* is a callable ``(left, right, ndisp) -> float32 (H, W)`` disparity
 (NumPy in, NumPy out, images as read from disk); a :class:`BatchedMethod` can also run many
 scenes together (e.g. grouped by shape and sharded over devices), and its per-scene time is
 then its share of a step (see :meth:`BatchedMethod.match_many`). Metrics are those of
-:mod:`sswjax.evaluation.metrics` (percentages for bad-t and invalid, pixels for avgerr/rms/a90).
+:mod:`sswjax.evaluation.metrics` (percentages for bad-t, D1 and invalid, pixels for
+avgerr/rms/a90); which ones, and how they are averaged, is a :class:`Scoring` (:data:`SCORINGS`,
+by the ``scoring`` of a data layout). Every function defaults to MiddEval3's.
 """
 
 from __future__ import annotations
@@ -18,10 +21,51 @@ from typing import NamedTuple, Protocol, runtime_checkable
 import numpy as np
 
 from sswjax.data.datasets import StereoScene
-from sswjax.evaluation.metrics import evaluate_disparity, weighted_average
+from sswjax.evaluation.metrics import (
+    MIDDEVAL3_TRAINING_WEIGHTS,
+    evaluate_disparity,
+    weighted_average,
+)
 
 THRESHOLDS = (0.5, 1.0, 2.0)
 REGIONS = ("nonocc", "all")
+
+
+class Scoring(NamedTuple):
+    """Which metrics a data layout reports and how its summary averages them over scenes.
+
+    Attributes
+    ----------
+    average : str
+        ``"weighted"`` (by ``weights``) or ``"mean"`` (every scene alike), as tables say it.
+    thresholds : tuple of float
+        bad-t thresholds in pixels, in table order.
+    d1 : bool
+        Whether KITTI's D1 is reported too (after the bad-t columns).
+    weights : Mapping[str, float] or None
+        Scene weights of a ``"weighted"`` average.
+    """
+
+    average: str
+    thresholds: tuple[float, ...]
+    d1: bool = False
+    weights: Mapping[str, float] | None = None
+
+    @property
+    def keys(self) -> list[str]:
+        """Metric keys of the tables, in order: ``["bad2.0", ..., "D1"]``."""
+        return [f"bad{float(t)}" for t in self.thresholds] + (["D1"] if self.d1 else [])
+
+
+#: Scoring of each ``Layout.scoring`` of :mod:`sswjax.data.layouts`: MiddEval3 bad 2.0/1.0/0.5
+#: with the official weights; the others bad 2.0/1.0/0.5 and 3.0 (KITTI's threshold), means
+#: over scenes, and for KITTI also D1.
+SCORINGS: dict[str, Scoring] = {
+    "middeval3": Scoring("weighted", (2.0, 1.0, 0.5), weights=MIDDEVAL3_TRAINING_WEIGHTS),
+    "kitti": Scoring("mean", (2.0, 1.0, 0.5, 3.0), d1=True),
+    "mean": Scoring("mean", (2.0, 1.0, 0.5, 3.0)),
+}
+MIDDEVAL3_SCORING = SCORINGS["middeval3"]
 
 _PAPER_SCENES = ("Adirondack", "ArtL", "Jadeplant", "Motorcycle", "MotorcycleE", "Piano", "PianoL",
                  "Pipes", "Playroom", "Playtable", "PlaytableP", "Recycle", "Shelves", "Teddy",
@@ -85,95 +129,145 @@ def _check_ground_truth(scene: StereoScene) -> None:
         raise ValueError(f"scene {scene.name} has no ground truth (disp0GT.pfm)")
 
 
-def _scored(scene: StereoScene, disparity, seconds: float) -> SceneResult:
+def _scored(scene: StereoScene, disparity, seconds: float, scoring: Scoring) -> SceneResult:
     disparity = np.asarray(disparity, dtype=np.float32)
-    metrics = evaluate_disparity(
-        disparity, scene.ground_truth, mask=scene.mask, ndisp=scene.ndisp, thresholds=THRESHOLDS
-    )
+    thresholds = THRESHOLDS if scoring is MIDDEVAL3_SCORING else sorted(scoring.thresholds)
+    metrics = evaluate_disparity(disparity, scene.ground_truth, mask=scene.mask, ndisp=scene.ndisp,
+                                 thresholds=thresholds, d1=scoring.d1)
     return SceneResult(scene.name, disparity, metrics, seconds)
 
 
-def evaluate_scene(method: Method, scene: StereoScene) -> SceneResult:
-    """Run ``method`` on one scene with ground truth and compute its metrics."""
+def rescore(result: SceneResult, scene: StereoScene, *, scoring: Scoring = MIDDEVAL3_SCORING
+            ) -> SceneResult:
+    """``result`` with its metrics recomputed from its disparity under ``scoring``.
+
+    Parameters
+    ----------
+    result : SceneResult
+        A result of ``scene`` (its ``float32`` ``(H, W)`` disparity is kept, as is its time).
+    scene : StereoScene
+        The scene, with ground truth.
+    scoring : Scoring
+        Metrics to compute (see :data:`SCORINGS`).
+
+    Returns
+    -------
+    SceneResult
+    """
+    _check_ground_truth(scene)
+    return _scored(scene, result.disparity, result.seconds, scoring)
+
+
+def evaluate_scene(
+    method: Method, scene: StereoScene, *, scoring: Scoring = MIDDEVAL3_SCORING
+) -> SceneResult:
+    """Run ``method`` on one scene with ground truth and compute the metrics of ``scoring``."""
     _check_ground_truth(scene)
     start = time.perf_counter()
     disparity = np.asarray(method(scene.left, scene.right, scene.ndisp), dtype=np.float32)
-    return _scored(scene, disparity, time.perf_counter() - start)
+    return _scored(scene, disparity, time.perf_counter() - start, scoring)
 
 
 def iter_evaluate_scenes(
-    method: Method | BatchedMethod, scenes: Sequence[StereoScene]
+    method: Method | BatchedMethod, scenes: Sequence[StereoScene], *,
+    scoring: Scoring = MIDDEVAL3_SCORING,
 ) -> Iterator[tuple[int, SceneResult]]:
     """``(index in scenes, result)`` of every scene as soon as it is done.
 
     A :class:`BatchedMethod` runs all scenes through its ``match_many`` (its order); any other
     method one scene at a time, in order. Every scene must have ground truth (checked first).
+    The metrics are those of ``scoring``.
     """
     scenes = list(scenes)
     for scene in scenes:
         _check_ground_truth(scene)
     if not isinstance(method, BatchedMethod):
         for index, scene in enumerate(scenes):
-            yield index, evaluate_scene(method, scene)
+            yield index, evaluate_scene(method, scene, scoring=scoring)
         return
     runs = method.match_many([(s.left, s.right) for s in scenes], [s.ndisp for s in scenes])
     for index, disparity, seconds in runs:
-        yield index, _scored(scenes[index], disparity, seconds)
+        yield index, _scored(scenes[index], disparity, seconds, scoring)
 
 
 def evaluate_scenes(
-    method: Method | BatchedMethod, scenes: Iterable[StereoScene], *, progress: bool = False
+    method: Method | BatchedMethod, scenes: Iterable[StereoScene], *, progress: bool = False,
+    scoring: Scoring = MIDDEVAL3_SCORING,
 ) -> list[SceneResult]:
     """Evaluate ``method`` on every scene, results in scene order (a tqdm bar when ``progress``).
 
-    See :func:`iter_evaluate_scenes` for how plain and batched methods are run.
+    See :func:`iter_evaluate_scenes` for how plain and batched methods are run and scored.
     """
     from tqdm import tqdm
 
     scenes = list(scenes)
     results: list[SceneResult | None] = [None] * len(scenes)
     with tqdm(total=len(scenes), desc="scenes", unit="scene", disable=not progress) as bar:
-        for index, result in iter_evaluate_scenes(method, scenes):
+        for index, result in iter_evaluate_scenes(method, scenes, scoring=scoring):
             results[index] = result
             bar.update(1)
     return results
 
 
-def summary(results: Sequence[SceneResult]) -> dict[str, dict[str, float]]:
-    """Weighted MiddEval3 averages: ``{region: {"bad2.0": %, "bad1.0": %, "bad0.5": %}}``."""
+def _average(values: Mapping[str, float], scoring: Scoring) -> float:
+    if scoring.average == "weighted":
+        return weighted_average(values, weights=scoring.weights)
+    return float(np.mean([float(v) for v in values.values()]))
+
+
+def summary(
+    results: Sequence[SceneResult], *, scoring: Scoring = MIDDEVAL3_SCORING
+) -> dict[str, dict[str, float]]:
+    """Averages over scenes: ``{region: {"bad2.0": %, "bad1.0": %, "bad0.5": %, ...}}``.
+
+    Parameters
+    ----------
+    results : sequence of SceneResult
+        One method's results (distinct scene names).
+    scoring : Scoring
+        Keys and average: MiddEval3's weighted bad 2.0/1.0/0.5 by default; the means (and
+        bad 3.0, D1) of the other layouts from :data:`SCORINGS`.
+
+    Returns
+    -------
+    dict
+        Region (those every result has) -> metric key -> percentage.
+    """
     out: dict[str, dict[str, float]] = {}
     for region in REGIONS:
         if not all(region in r.metrics for r in results):
             continue
         out[region] = {
-            f"bad{t}": weighted_average({r.scene: r.metrics[region][f"bad{t}"] for r in results})
-            for t in sorted(THRESHOLDS, reverse=True)
+            key: _average({r.scene: r.metrics[region][key] for r in results}, scoring)
+            for key in scoring.keys
         }
     return out
 
 
-def _columns(results: Sequence[SceneResult]) -> list[tuple[str, str]]:
-    """(region, metric) columns: bad 2.0 / 1.0 / 0.5 for the regions every result has."""
+def _columns(results: Sequence[SceneResult], scoring: Scoring) -> list[tuple[str, str]]:
+    """(region, metric) columns: the keys of ``scoring`` for the regions every result has."""
     regions = [reg for reg in REGIONS if all(reg in r.metrics for r in results)]
-    return [(region, f"bad{t}") for t in sorted(THRESHOLDS, reverse=True) for region in regions]
+    return [(region, key) for key in scoring.keys for region in regions]
 
 
-def markdown_table(results: Sequence[SceneResult]) -> str:
-    """Per-scene bad 2.0 / 1.0 / 0.5 (nonocc and all) with the weighted average as last row.
+def markdown_table(results: Sequence[SceneResult], *, scoring: Scoring = MIDDEVAL3_SCORING) -> str:
+    """Per-scene metrics of ``scoring`` (nonocc and all) with their average as last row.
 
-    Scenes without an occlusion mask have no "nonocc" region; the table then shows "all" only.
+    MiddEval3 by default: bad 2.0 / 1.0 / 0.5 and the weighted average. Scenes without an
+    occlusion mask have no "nonocc" region; the table then shows "all" only.
     """
-    columns = _columns(results)
+    columns = _columns(results, scoring)
     header = "| scene | " + " | ".join(f"{k} {reg}" for reg, k in columns) + " | time s |"
     rule = "|---" * (len(columns) + 2) + "|"
     lines = [header, rule]
     for r in results:
         cells = [f"{r.metrics[reg][k]:.2f}" for reg, k in columns]
         lines.append(f"| {r.scene} | " + " | ".join(cells) + f" | {r.seconds:.2f} |")
-    averages = summary(results)
+    averages = summary(results, scoring=scoring)
     cells = [f"**{averages[reg][k]:.2f}**" for reg, k in columns]
     median_time = float(np.median([r.seconds for r in results]))
-    lines.append("| **weighted average** | " + " | ".join(cells) + f" | {median_time:.2f} (median) |")
+    label = "weighted average" if scoring.average == "weighted" else "mean"
+    lines.append(f"| **{label}** | " + " | ".join(cells) + f" | {median_time:.2f} (median) |")
     return "\n".join(lines)
 
 
@@ -215,13 +309,18 @@ def table1_markdown(results: Mapping[str, Sequence[SceneResult]], *, threshold: 
     return "\n".join(lines)
 
 
-def summary_markdown(results: Mapping[str, Sequence[SceneResult]]) -> str:
-    """One row per method: weighted bad 2.0 / 1.0 / 0.5 (nonocc and all) and median time."""
-    columns = _columns([r for rows in results.values() for r in rows])
+def summary_markdown(
+    results: Mapping[str, Sequence[SceneResult]], *, scoring: Scoring = MIDDEVAL3_SCORING
+) -> str:
+    """One row per method: the averages of ``scoring`` (nonocc and all) and median time.
+
+    MiddEval3 by default: weighted bad 2.0 / 1.0 / 0.5.
+    """
+    columns = _columns([r for rows in results.values() for r in rows], scoring)
     lines = ["| method | " + " | ".join(f"{k} {reg}" for reg, k in columns) + " | median s |",
              "|---" * (len(columns) + 2) + "|"]
     for method, rows in results.items():
-        averages = summary(rows)
+        averages = summary(rows, scoring=scoring)
         cells = [f"{averages[reg][k]:.2f}" for reg, k in columns]
         seconds = float(np.median([r.seconds for r in rows]))
         lines.append(f"| {method} | " + " | ".join(cells) + f" | {seconds:.2f} |")

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -132,6 +134,8 @@ def test_find_data_root_priority(tmp_path, monkeypatch):
     monkeypatch.delenv("SSWJAX_DATA")
     default = find_data_root()
     assert default.parts[-3:] == ("shared", "data", "MiddEval3")
+    project = Path(__file__).resolve().parents[2]  # tests/data/test_datasets.py -> project
+    assert default == project.parent / "shared" / "data" / "MiddEval3"
 
 
 def test_real_middeval3_training():
