@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import importlib
-import importlib.util
 
 import imageio.v3 as iio
 import numpy as np
@@ -115,9 +114,12 @@ def oracle(monkeypatch):
         return run
 
     monkeypatch.setattr(sswjax.evaluation.methods, "make_method", make_method)
-    if importlib.util.find_spec("sswjax.registry") is not None:  # where methods may be named
-        monkeypatch.setattr(importlib.import_module("sswjax.registry"), "make_method", make_method,
-                            raising=False)
+    try:  # where methods may also be named
+        registry = importlib.import_module("sswjax.registry")
+    except ImportError:
+        registry = None
+    if registry is not None:
+        monkeypatch.setattr(registry, "make_method", make_method, raising=False)
     return calls
 
 
