@@ -21,6 +21,10 @@ the SLIC assignment argmin) and ``lr_tolerance`` (the left-right check is not on
 They are kept at the values of the initial ``Params`` (or can be put in an outer grid), as are all
 static fields (radii, census window, superpixel count, iterations).
 
+Optimiser: :func:`make_optimizer` is Adam wrapped in ``optax.multi_transform``; the raw keys
+listed as frozen are labelled ``"frozen"`` and get ``optax.set_to_zero()`` (a zero update, no Adam
+moments), so freezing is part of the optimiser and :func:`make_update_step` knows nothing of it.
+
 Devices: :func:`make_update_step` splits each crop batch over a 1-D mesh of all JAX devices
 (``jax.sharding``; padded with zero-weight crops to a multiple of the device count) with the
 parameters and optimizer state replicated, so one step uses every CPU device, GPU or TPU core
@@ -68,7 +72,7 @@ def _logit(p):
     return np.log(p) - np.log1p(-p)
 
 
-def to_unconstrained(dynamic: DynamicParams, temperature: float = 0.02) -> dict:
+def to_unconstrained(dynamic: DynamicParams, *, temperature: float = 0.02) -> dict:
     """Raw (unconstrained) search variables of ``dynamic`` and a soft-argmin temperature.
 
     The weights are normalised to sum to 1 (WTA does not change); their logits are centred.
@@ -86,7 +90,8 @@ def to_unconstrained(dynamic: DynamicParams, temperature: float = 0.02) -> dict:
     return raw
 
 
-def from_unconstrained(raw: dict, base: DynamicParams = DynamicParams()) -> tuple[DynamicParams, jax.Array]:
+def from_unconstrained(raw: dict, *, base: DynamicParams = DynamicParams()
+                       ) -> tuple[DynamicParams, jax.Array]:
     """Constrained ``DynamicParams`` (fields not searched taken from ``base``) and the temperature."""
     weights = jax.nn.softmax(raw["weight_logits"])
     values = dict(zip(WEIGHTS, (weights[0], weights[1], weights[2])))
@@ -99,7 +104,7 @@ def from_unconstrained(raw: dict, base: DynamicParams = DynamicParams()) -> tupl
 
 def raw_to_params(raw: dict, base: Params) -> Params:
     """``base`` with its searched dynamic fields replaced by those of ``raw`` (plain floats)."""
-    dynamic, _ = from_unconstrained(raw, base.dynamic)
+    dynamic, _ = from_unconstrained(raw, base=base.dynamic)
     return base.replace(**{k: float(getattr(dynamic, k)) for k in SEARCHED})
 
 
@@ -121,7 +126,7 @@ def soft_disparity(raw, left, right, *, static: StaticParams, ndisp: int, base: 
     common, padded ``ndisp`` gives each scene its own range (the cost of every slice is computed
     and aggregated independently, so the kept slices are those of the scene's own ``ndisp``).
     """
-    dynamic, temperature = from_unconstrained(raw, base)
+    dynamic, temperature = from_unconstrained(raw, base=base)
     cost = aggregated_cost(left, right, Params(dynamic=dynamic, static=static), ndisp=ndisp)
     if scene_ndisp is not None:
         d = jnp.arange(ndisp)[:, None, None]
@@ -129,7 +134,7 @@ def soft_disparity(raw, left, right, *, static: StaticParams, ndisp: int, base: 
     return soft_argmin(cost, temperature=temperature)
 
 
-def smooth_l1(error, delta: float = HUBER_DELTA):
+def smooth_l1(error, *, delta: float = HUBER_DELTA):
     """Huber loss of an error (quadratic below ``delta`` pixels, linear above)."""
     a = jnp.abs(error)
     return jnp.where(a < delta, 0.5 * a * a / delta, a - 0.5 * delta)
@@ -185,8 +190,36 @@ def shard_crops(batch, mesh):
     return jax.device_put((lefts, rights, gts, valids, scene_ndisps), sharding)
 
 
+def freeze_labels(frozen):
+    """optax labels of a ``raw`` dict: ``"frozen"`` for the keys in ``frozen``, else ``"train"``.
+
+    Returns a function of ``raw`` (as ``optax.multi_transform`` takes it). Raises ``ValueError``
+    for a key not in :data:`RAW_KEYS`.
+    """
+    frozen = tuple(frozen)
+    unknown = sorted(set(frozen) - set(RAW_KEYS))
+    if unknown:
+        raise ValueError(f"unknown raw keys {unknown}; expected some of {RAW_KEYS}")
+    return lambda raw: {k: "frozen" if k in frozen else "train" for k in raw}
+
+
+def make_optimizer(learning_rate: float, *, frozen=()) -> optax.GradientTransformation:
+    """Adam on the raw keys not in ``frozen``; the keys in ``frozen`` do not move.
+
+    ``optax.multi_transform`` routes the leaves labelled by :func:`freeze_labels`: ``"train"``
+    to ``optax.adam(learning_rate)``, ``"frozen"`` to ``optax.set_to_zero()``. Adam is elementwise,
+    so the trained leaves follow exactly the path they would with a zero gradient on the frozen
+    ones (which gives Adam a zero update). The state holds Adam moments for the trained leaves
+    only; its structure depends on ``frozen`` (see :func:`load_checkpoint`).
+    """
+    return optax.multi_transform(
+        {"train": optax.adam(learning_rate), "frozen": optax.set_to_zero()},
+        freeze_labels(frozen),
+    )
+
+
 def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: DynamicParams,
-                     frozen: tuple[str, ...] = (), devices=None):
+                     devices=None):
     """``(raw, opt_state, batch) -> (raw, opt_state, loss)``: one jitted optax step, sharded.
 
     ``batch`` = ``(lefts, rights, gts, valids, scene_ndisps)`` (see :func:`shard_crops`) is
@@ -194,9 +227,9 @@ def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: Dynam
     size (padded with zero-weight crops to a multiple of the device count; a multiple wastes
     nothing); ``raw`` and ``opt_state`` are replicated, so ``jit`` partitions the vmapped loss
     and its gradient over the devices and all-reduces the sums. The returned ``raw`` and
-    ``opt_state`` are replicated. Keys of ``raw`` in ``frozen`` get a zero gradient (with Adam
-    they then do not move)."""
-    mesh = device_mesh(devices)
+    ``opt_state`` are replicated. Every key of ``raw`` gets its gradient; to hold some fixed,
+    build ``optimizer`` with :func:`make_optimizer` (``frozen=...``)."""
+    mesh = device_mesh(devices=devices)
     replicated = NamedSharding(mesh, PartitionSpec())
 
     def objective(raw, batch):
@@ -205,7 +238,6 @@ def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: Dynam
     @functools.partial(jax.jit, out_shardings=replicated)
     def sharded_step(raw, opt_state, batch):
         value, grads = jax.value_and_grad(objective)(raw, batch)
-        grads = {k: jnp.zeros_like(g) if k in frozen else g for k, g in grads.items()}
         updates, opt_state = optimizer.update(grads, opt_state, raw)
         return optax.apply_updates(raw, updates), opt_state, value
 
@@ -280,23 +312,29 @@ def save_checkpoint(path, *, raw, opt_state, step: int, rng: np.random.Generator
 def load_checkpoint(path, *, opt_state_like):
     """Inverse of :func:`save_checkpoint`: ``(raw, opt_state, step, rng, extra)``.
 
-    ``opt_state_like`` (e.g. ``optimizer.init(raw)``) gives the pytree structure to restore.
+    ``opt_state_like`` (e.g. ``optimizer.init(raw)``) gives the pytree structure to restore; a
+    checkpoint whose optimizer state has another structure (another ``frozen`` set of
+    :func:`make_optimizer`, or written before the optimizer was a ``multi_transform``) raises
+    ``ValueError``.
     """
     with open(path, "rb") as handle:
         state = pickle.load(handle)
     raw = {k: jnp.asarray(v) for k, v in state["raw"].items()}
-    leaves = jax.tree_util.tree_leaves(state["opt_state"])
-    opt_state = jax.tree_util.tree_unflatten(
-        jax.tree_util.tree_structure(opt_state_like), [jnp.asarray(x) for x in leaves]
-    )
+    leaves, stored = jax.tree_util.tree_flatten(state["opt_state"])
+    expected = jax.tree_util.tree_structure(opt_state_like)
+    if stored != expected:
+        raise ValueError(f"{path}: its optimizer state does not match this optimizer (written "
+                         "with another frozen set, or before make_optimizer)")
+    opt_state = jax.tree_util.tree_unflatten(expected, [jnp.asarray(x) for x in leaves])
     rng = np.random.default_rng()
     rng.bit_generator.state = state["rng"]
     return raw, opt_state, state["step"], rng, state["extra"]
 
 
 __all__ = [
-    "FIXED", "SEARCHED", "TRUNCATION_RANGES", "batch_loss", "crop_segments", "from_unconstrained",
-    "load_checkpoint", "loss", "make_update_step", "prepare_scene", "random_crops",
+    "FIXED", "RAW_KEYS", "SEARCHED", "TRUNCATION_RANGES", "batch_loss", "crop_segments",
+    "freeze_labels", "from_unconstrained", "load_checkpoint", "loss", "make_optimizer",
+    "make_update_step", "prepare_scene", "random_crops",
     "raw_to_params", "save_checkpoint", "shard_crops", "smooth_l1", "soft_disparity",
     "to_unconstrained", "valid_mask",
 ]

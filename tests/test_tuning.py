@@ -1,9 +1,6 @@
 """Tests of the differentiable search objective (sswjax.tuning): tiny synthetic crops only."""
 
 import json
-import os
-import subprocess
-import sys
 
 import jax
 import jax.numpy as jnp
@@ -53,7 +50,8 @@ def adam():
 def test_round_trip():
     dynamic = DynamicParams(tad_weight=0.1, gradient_weight=0.3, census_weight=0.6,
                             tad_truncation=0.05, gradient_truncation=0.2, segment_weight=0.7)
-    back, temperature = tuning.from_unconstrained(tuning.to_unconstrained(dynamic, 0.03), dynamic)
+    back, temperature = tuning.from_unconstrained(tuning.to_unconstrained(dynamic, temperature=0.03),
+                                                  base=dynamic)
     for name in tuning.SEARCHED:
         assert float(getattr(back, name)) == pytest.approx(getattr(dynamic, name), rel=1e-4)
     assert float(temperature) == pytest.approx(0.03, rel=1e-4)
@@ -108,9 +106,39 @@ def test_update_step_lowers_loss(batch, adam):
     assert np.isfinite(float(before)) and float(after) < float(before)
 
 
+def test_frozen_keys_by_construction(batch):
+    """make_optimizer's frozen keys get zero updates and no Adam moments; the trained keys take
+    bit for bit the steps of Adam fed a zeroed gradient on the frozen keys (the hand-made way)."""
+    frozen = ("weight_logits", "temperature")
+    raw0 = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    mask = {k: k in frozen for k in raw0}
+    zeroed = optax.chain(optax.masked(optax.set_to_zero(), mask), optax.adam(0.05))
+    paths = []
+    for optimizer in (tuning.make_optimizer(0.05, frozen=frozen), zeroed):
+        step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams())
+        raw, state, path = raw0, optimizer.init(raw0), []
+        for _ in range(3):
+            raw, state, value = step(raw, state, batch)
+            path.append((float(value), {k: np.asarray(v) for k, v in raw.items()}))
+        paths.append(path)
+    assert paths[0][2][0] != paths[0][0][0]  # the loss moved
+    for (loss_new, raw_new), (loss_old, raw_old) in zip(*paths):
+        assert loss_new == loss_old
+        for key in raw0:
+            np.testing.assert_array_equal(raw_new[key], raw_old[key], err_msg=key)
+            if key in frozen:
+                np.testing.assert_array_equal(raw_new[key], np.asarray(raw0[key]), err_msg=key)
+    # Adam's moments exist only for the trained keys
+    adam_state = tuning.make_optimizer(0.05, frozen=frozen).init(raw0).inner_states["train"]
+    mu = adam_state.inner_state[0].mu
+    assert {k for k, v in mu.items() if not isinstance(v, optax.MaskedNode)} == set(raw0) - set(frozen)
+    with pytest.raises(ValueError, match="unknown raw keys"):
+        tuning.make_optimizer(0.05, frozen=("tad_weight",))
+
+
 def test_checkpoint_round_trip(tmp_path):
     raw = tuning.to_unconstrained(DynamicParams())
-    optimizer = optax.adam(0.05)
+    optimizer = tuning.make_optimizer(0.05, frozen=("weight_logits",))
     state = optimizer.init(raw)
     grads = jax.tree_util.tree_map(jnp.ones_like, raw)
     updates, state = optimizer.update(grads, state, raw)
@@ -129,6 +157,10 @@ def test_checkpoint_round_trip(tmp_path):
     u2, _ = optimizer.update(grads, state2, raw2)
     for a, b in zip(jax.tree_util.tree_leaves(u1), jax.tree_util.tree_leaves(u2)):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b))
+    # another frozen set, or the plain Adam state of the old format, is refused
+    for other in (tuning.make_optimizer(0.05, frozen=("temperature",)), optax.adam(0.05)):
+        with pytest.raises(ValueError, match="does not match"):
+            tuning.load_checkpoint(path, opt_state_like=other.init(raw))
 
 
 def test_random_crops_shapes():
@@ -159,7 +191,7 @@ def _two_steps(devices):
     for _ in range(2):
         raw, state, value = step(raw, state, crops)
         out.append({"loss": float(value), **{k: np.asarray(v).tolist() for k, v in raw.items()}})
-    placed = tuning.shard_crops(crops, device_mesh(devices))
+    placed = tuning.shard_crops(crops, device_mesh(devices=devices))
     lefts = placed[0]
     layout = {"size": lefts.shape[0], "per_device": lefts.sharding.shard_shape(lefts.shape)[0],
               "padding_valid": bool(np.asarray(placed[3])[3:].any()),
@@ -168,21 +200,16 @@ def _two_steps(devices):
 
 
 TUNING_SCRIPT = """
-import json, sys
-sys.path.insert(0, {tests!r})
+import json
 from test_tuning import _two_steps
 print(json.dumps(_two_steps(None)))
 """
 
 
-def test_sharded_step_same_on_one_and_two_devices():
+def test_sharded_step_same_on_one_and_two_devices(run_on_devices):
     one, layout_one = _two_steps(jax.devices()[:1])
     assert layout_one == {"size": 3, "per_device": 3, "padding_valid": False, "raw_devices": 1}
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
-    script = TUNING_SCRIPT.format(tests=os.path.dirname(__file__))
-    run = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
-                         check=True)
-    two, layout_two = json.loads(run.stdout.strip().splitlines()[-1])
+    two, layout_two = json.loads(run_on_devices(TUNING_SCRIPT))
     # padded to 4 with one zero-weight crop, 2 crops per device; parameters on both devices
     assert layout_two == {"size": 4, "per_device": 2, "padding_valid": False, "raw_devices": 2}
     for step_one, step_two in zip(one, two):

@@ -31,16 +31,14 @@ import sys
 import time
 from pathlib import Path
 
-import jax
 import numpy as np
-import optax
 from tqdm import tqdm
 
 import sswjax
 import sswjax.data.datasets
 from sswjax import tuning
-from sswjax.evaluation.runner import evaluate_scenes, summary
-from sswjax.evaluation.metrics import evaluate_disparity, weighted_average
+from sswjax.evaluation.metrics import weighted_average
+from sswjax.evaluation.runner import evaluate_scenes
 from sswjax.params import load_params, save_params
 from sswjax.pipeline import ssw_disparity
 
@@ -93,7 +91,8 @@ def run_search(train, val, out: Path, base, args, desc):
     by_bucket = {b: [s for s in train if bucket_of(s) == b] for b in range(len(BUCKETS))}
     probs = np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float)
     probs /= probs.sum()
-    optimizer = optax.adam(args.lr)
+    # Adam; the --freeze keys get optax.set_to_zero() (multi_transform), so they never move
+    optimizer = tuning.make_optimizer(args.lr, frozen=args.freeze)
     raw = tuning.to_unconstrained(base.dynamic, temperature=args.temperature)
     opt_state = optimizer.init(raw)
     rng = np.random.default_rng(args.seed)
@@ -119,7 +118,7 @@ def run_search(train, val, out: Path, base, args, desc):
         n = args.val_crops if b == 0 else max(1, args.val_crops // 4)
         vcrops[b] = tuning.random_crops(pool, vrng, batch=n, height=args.crop, width=w) if pool else None
     steps_fn = {b: tuning.make_update_step(optimizer, static=statics[b], ndisp=BUCKETS[b][0],
-                                           base=base.dynamic, frozen=tuple(args.freeze))
+                                           base=base.dynamic)
                 for b in by_bucket if by_bucket[b]}
 
     def validate(at):
@@ -153,7 +152,7 @@ def run_search(train, val, out: Path, base, args, desc):
             write_json(log_path, log)
     bar.close()
     params = tuning.raw_to_params(averaged(), base)
-    _, temperature = tuning.from_unconstrained(averaged(), base.dynamic)
+    _, temperature = tuning.from_unconstrained(averaged(), base=base.dynamic)
     log["temperature"] = float(temperature)
     write_json(log_path, log)
     return params, log
@@ -163,7 +162,7 @@ def evaluate(params, scenes, path: Path, desc):
     """Per-scene metrics of the full WTA pipeline (cached in ``path``)."""
     if path.exists():
         return json.loads(path.read_text())
-    method = lambda l, r, n: sswjax.match(l, r, n, params)  # noqa: E731
+    method = lambda l, r, n: sswjax.match(l, r, n, params=params)  # noqa: E731
     print(f"evaluating {desc} on {len(scenes)} scenes", flush=True)
     results = evaluate_scenes(method, scenes, progress=True)
     data = {r.scene: r.metrics for r in results}
@@ -189,7 +188,8 @@ def main(argv=None):
                         help="decay of the moving average of the iterates (the result); 0 = last")
     parser.add_argument("--temperature", type=float, default=0.02, help="initial soft-argmin temperature")
     parser.add_argument("--freeze", nargs="*", default=[], choices=tuning.RAW_KEYS,
-                        help="raw variables kept at their initial value (e.g. weight_logits)")
+                        help="raw variables kept at their initial value (e.g. weight_logits): "
+                             "optax.set_to_zero() for them, Adam for the rest (tuning.make_optimizer)")
     parser.add_argument("--val-every", type=int, default=25)
     parser.add_argument("--val-crops", type=int, default=4)
     parser.add_argument("--checkpoint-every", type=int, default=10)
@@ -265,7 +265,6 @@ def main(argv=None):
 
     plot_run(args.out, args.out / "curves.png")
     print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
-    _ = (jax, evaluate_disparity, summary)
 
 
 if __name__ == "__main__":
