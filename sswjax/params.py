@@ -84,9 +84,9 @@ class StaticParams(NamedTuple):
 class DynamicParams(NamedTuple):
     """Continuous fields: pytree leaves, traced by ``jit`` and searched by optax.
 
-    Defaults: ``tuning/params/tuned.json`` (the truncations and the segment weight found by the
-    optax search of ``tuning/search.py``, rounded to 4 digits; the weights and the rest as set by
-    hand in ``tuning/params/hand.json``).
+    Defaults: the exact values of ``tuning/params/tuned.json`` (the truncations and the segment
+    weight found by the optax search of ``tuning/search.py``; the weights and the rest as set by
+    hand in ``tuning/params/hand.json``, stored as the search's float32 values).
 
     Attributes
     ----------
@@ -104,12 +104,12 @@ class DynamicParams(NamedTuple):
         Largest left/right disagreement, in pixels, that the consistency check accepts.
     """
 
-    tad_weight: Any = 0.05
-    gradient_weight: Any = 0.15
-    census_weight: Any = 0.8
-    tad_truncation: Any = 0.04222
-    gradient_truncation: Any = 0.01548
-    segment_weight: Any = 0.5997
+    tad_weight: Any = 0.05000000074505806
+    gradient_weight: Any = 0.15000000596046448
+    census_weight: Any = 0.800000011920929
+    tad_truncation: Any = 0.04221818596124649
+    gradient_truncation: Any = 0.015484430827200413
+    segment_weight: Any = 0.5996789336204529
     slic_compactness: Any = 10.0
     lr_tolerance: Any = 0.0
 

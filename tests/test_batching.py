@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import jax
 import numpy as np
@@ -44,14 +41,11 @@ print(len(jax.devices()))
 """
 
 
-def test_two_devices_give_the_one_device_result(tmp_path):
+def test_two_devices_give_the_one_device_result(tmp_path, run_on_devices):
     results = {}
     for count in (1, 2):
         path = tmp_path / f"out{count}.npy"
-        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={count}")
-        run = subprocess.run([sys.executable, "-c", SCRIPT.format(path=str(path))], env=env,
-                             capture_output=True, text=True, check=True)
-        assert run.stdout.strip().endswith(str(count))
+        assert run_on_devices(SCRIPT.format(path=str(path)), devices=count) == str(count)
         results[count] = np.load(path)
     # Same winners; sub-pixel values may differ in the last bits between the two compilations.
     np.testing.assert_allclose(results[1], results[2], rtol=0, atol=1e-5)
@@ -132,9 +126,8 @@ def test_scenes_check_every_pair_before_running(monkeypatch):
 
 
 SCENES_SCRIPT = """
-import json, sys
+import json
 import jax, numpy as np
-sys.path.insert(0, {tests!r})
 from test_batching import _run_scenes
 maps, order, calls = _run_scenes(None)
 np.savez({path!r}, *maps)
@@ -142,13 +135,9 @@ print(json.dumps({{"devices": len(jax.devices()), "order": order, "calls": calls
 """
 
 
-def test_scenes_on_two_devices_give_the_one_device_result(one_device, tmp_path):
+def test_scenes_on_two_devices_give_the_one_device_result(one_device, tmp_path, run_on_devices):
     path = tmp_path / "maps.npz"
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
-    script = SCENES_SCRIPT.format(tests=os.path.dirname(__file__), path=str(path))
-    run = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
-                         check=True)
-    report = json.loads(run.stdout.strip().splitlines()[-1])
+    report = json.loads(run_on_devices(SCENES_SCRIPT.format(path=str(path))))
     assert report["devices"] == 2 and report["order"] == [0, 2, 4, 1, 3]
     # one pair per device in every call; the 3-pair group's last step is filled with a copy
     assert report["calls"] == [[2, 1]] * 3

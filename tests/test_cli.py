@@ -9,8 +9,9 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
+import sswjax
 from sswjax.cli import main
-from sswjax.data.io import read_pfm, write_pfm
+from sswjax.data.io import read_image, read_pfm, write_pfm
 
 NDISP = 12
 
@@ -100,3 +101,54 @@ def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):
     assert bad2 <= 13.6
     assert read_pfm(tmp_path / "disp0SSW.pfm").shape == (500, 741)
     assert (tmp_path / "disp0SSW.png").stat().st_size > 0
+
+
+# ----------------------------------------------------------------------------- inputs that must work
+# conftest's small_pair: 24x40, disparity 3, as colour, gray, 16-bit gray and RGBA PNGs.
+
+
+def _match_cli(files, tmp_path, left, right, ndisp=8):  # small_pair.ndisp
+    out = tmp_path / "d.pfm"
+    assert main(["match", str(files / left), str(files / right), "--ndisp", str(ndisp), "-o", str(out)]) == 0
+    return read_pfm(out)
+
+
+def test_cli_inputs_that_must_work(small_pair, tmp_path, capsys):
+    """Colour, gray, 16-bit, RGBA and colour/gray pairs, from files, agree with the API."""
+    files, shift, ndisp = small_pair.folder, small_pair.shift, small_pair.ndisp
+    colour = _match_cli(files, tmp_path, "left.png", "right.png")
+    assert np.median(colour[:, 12:]) == pytest.approx(shift, abs=0.05)
+    # RGBA: the alpha channel is dropped, the result is bit-identical
+    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_rgba.png", "right_rgba.png"), colour)
+    # gray pairs, 8 and 16 bits (v * 257 / 65535 == v / 255 exactly in float32)
+    gray = _match_cli(files, tmp_path, "left_gray.png", "right_gray.png")
+    assert np.median(gray[:, 12:]) == pytest.approx(shift, abs=0.05)
+    assert read_image(files / "left_gray16.png").dtype == np.uint16
+    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_gray16.png", "right_gray16.png"), gray)
+    # colour + gray (either side): both used as gray, the colour one by BT.601 luma, like the API
+    mixed = _match_cli(files, tmp_path, "left.png", "right_gray.png")
+    assert np.median(mixed[:, 12:]) == pytest.approx(shift, abs=0.05)
+    api = sswjax.match(read_image(files / "left.png"), read_image(files / "right_gray.png"), ndisp)
+    np.testing.assert_array_equal(mixed, api)
+    mixed_other_way = _match_cli(files, tmp_path, "left_gray16.png", "right.png")
+    api = sswjax.match(read_image(files / "left_gray16.png"), read_image(files / "right.png"), ndisp)
+    np.testing.assert_array_equal(mixed_other_way, api)
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_cli_16bit_colour_png(small_pair, tmp_path):
+    """16-bit colour PNGs: all 16 bits read (with OpenCV), and matched like their 8-bit twins."""
+    files, height, width = small_pair.folder, small_pair.height, small_pair.width
+    cv2 = pytest.importorskip("cv2")
+    left8, right8 = read_image(files / "left.png"), read_image(files / "right.png")
+    rng = np.random.default_rng(4)
+    for name, image in (("left48.png", left8), ("right48.png", right8)):
+        # v * 257 plus low-byte noise that only a 16-bit reader sees
+        wide = image.astype(np.uint16) * 257 + rng.integers(0, 2, image.shape, dtype=np.uint16)
+        assert cv2.imwrite(str(tmp_path / name), wide[..., ::-1])
+        np.testing.assert_array_equal(read_image(tmp_path / name), wide)
+    rgba = np.concatenate([left8.astype(np.uint16) * 257, np.full((height, width, 1), 65535, np.uint16)], -1)
+    assert cv2.imwrite(str(tmp_path / "rgba64.png"), rgba[..., [2, 1, 0, 3]])
+    np.testing.assert_array_equal(read_image(tmp_path / "rgba64.png"), rgba[..., :3])
+    disparity = _match_cli(tmp_path, tmp_path, "left48.png", "right48.png")
+    assert np.median(disparity[:, 12:]) == pytest.approx(small_pair.shift, abs=0.05)

@@ -2,6 +2,7 @@
 
 import json
 import math
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -18,6 +19,21 @@ def test_defaults():
     assert p.dynamic == DynamicParams()
     assert p.static.aggregation_radius == 4
     assert (p.static.census_height, p.static.census_width) == (7, 9)
+
+
+def test_defaults_are_tuned_json():
+    """``Params()`` is ``tuning/params/tuned.json`` exactly: every field, no rounding."""
+    tuned = Path(__file__).parents[1] / "tuning" / "params" / "tuned.json"
+    data = json.loads(tuned.read_text())
+    defaults = Params()
+    assert set(data["static"]) == set(StaticParams._fields)
+    assert set(data["dynamic"]) == set(DynamicParams._fields)
+    for name, value in data["static"].items():
+        default = getattr(defaults.static, name)
+        assert default == value and type(default) is type(value), (name, default, value)
+    for name, value in data["dynamic"].items():
+        assert getattr(defaults.dynamic, name) == value, (name, getattr(defaults.dynamic, name), value)
+    assert load_params(tuned) == defaults
 
 
 def test_replace_static_and_dynamic():

@@ -205,6 +205,33 @@ def test_ssw_disparity_rejects_bad_pairs():
 
 
 # ---------------------------------------------------------------------------------------------
+# the two halves of the graph: aggregated_cost, then select_and_refine
+
+
+@pytest.mark.parametrize("subpixel", [False, True])
+def test_select_and_refine_of_aggregated_cost_is_the_whole_volume_method(pair, subpixel):
+    left, right = (jnp.asarray(im[:32, :64]) for im in pair)
+    params = Params().replace(n_segments=24, subpixel=subpixel, disparity_chunk=0)
+    halves = jax.jit(
+        lambda l, r, p: sswjax.select_and_refine(sswjax.aggregated_cost(l, r, p, ndisp=NDISP), p)
+    )
+    two_steps = np.asarray(halves(left, right, params))
+    whole = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP))
+    assert two_steps.shape == (32, 64) and two_steps.dtype == np.float32
+    np.testing.assert_array_equal(two_steps, whole)
+    assert np.median(two_steps[:, SHIFT + MARGIN :]) == pytest.approx(SHIFT, abs=1e-3)
+
+
+def test_select_and_refine_checks_the_cost():
+    with pytest.raises(ValueError, match=r"^cost must have rank 3, got shape \(8, 16\)$"):
+        sswjax.select_and_refine(jnp.zeros((8, 16)), Params())
+    with pytest.raises(ValueError, match=r"^cost must have rank 3, got shape \(1, 4, 8, 16\)$"):
+        sswjax.select_and_refine(jnp.zeros((1, 4, 8, 16)), Params())
+    with pytest.raises(TypeError, match=r"^cost must have a floating dtype, got int32$"):
+        sswjax.select_and_refine(jnp.zeros((4, 8, 16), jnp.int32), Params())
+
+
+# ---------------------------------------------------------------------------------------------
 # a real pair
 
 

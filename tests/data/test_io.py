@@ -1,5 +1,6 @@
 import os
 import struct
+from io import BytesIO
 
 import imageio.v3 as iio
 import numpy as np
@@ -33,6 +34,27 @@ def test_pfm_round_trip(tmp_path, shape):
     out = read_pfm(path)
     assert out.dtype == np.float32
     np.testing.assert_array_equal(out, array)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    shape=st.tuples(st.integers(1, 6), st.integers(1, 6)).flatmap(
+        lambda hw: st.sampled_from([hw, hw + (3,)])),
+    dtype=st.sampled_from([np.float32, np.float64]),
+    data=st.data(),
+)
+def test_pfm_round_trip_any_shape_and_value(tmp_path, shape, dtype, data):
+    width = 32 if dtype == np.float32 else 64
+    values = data.draw(st.lists(st.floats(width=width, allow_nan=True, allow_infinity=True),
+                                min_size=int(np.prod(shape)), max_size=int(np.prod(shape))))
+    array = np.array(values, dtype=dtype).reshape(shape)
+    path = tmp_path / "d.pfm"
+    write_pfm(path, array)
+    out = read_pfm(path)
+    with np.errstate(over="ignore"):
+        expected = array.astype(np.float32)  # float64 beyond float32 becomes inf, like the writer
+    assert out.dtype == np.float32 and out.shape == shape
+    np.testing.assert_array_equal(out.view(np.uint32), expected.view(np.uint32))  # bit for bit
 
 
 def test_pfm_written_bytes_are_bottom_to_top(tmp_path):
@@ -109,34 +131,66 @@ def _mutate(pos, new, cut):
     return data[: len(data) - cut]
 
 
-@settings(
-    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+# Files as bytes: random, after a PFM magic, or a valid file overwritten and cut.
+_PFM_BYTES = st.one_of(
+    st.binary(max_size=64),
+    st.builds(lambda head, tail: head + tail,
+              st.sampled_from([b"Pf", b"PF", b"Pf\n", b"PF\n3 2\n"]), st.binary(max_size=64)),
+    st.builds(_mutate, st.integers(0, 14), st.binary(min_size=1, max_size=3), st.integers(0, 30)),
+).map(lambda data: (data, None))
+
+# Files as headers: fuzzed tokens (magic, width, height, scale) between fuzzed separators.
+_SEPARATORS = st.sampled_from([b" ", b"\n", b"\r\n", b"\t", b"  \n", b"\n\n", b""])
+_NUMBER_TOKENS = st.one_of(
+    st.integers(-3, 12).map(lambda n: str(n).encode()),
+    st.sampled_from([b"999999999999", b"1e3", b"0x10", b"3.0", b"+4", b"\xff", b"\xd9\xa3"]),
+    st.binary(min_size=1, max_size=4),
 )
-@given(
-    data=st.one_of(
-        st.binary(max_size=64),
-        st.builds(
-            lambda head, tail: head + tail,
-            st.sampled_from([b"Pf", b"PF", b"Pf\n", b"PF\n3 2\n"]),
-            st.binary(max_size=64),
-        ),
-        st.builds(
-            _mutate,
-            st.integers(0, 14),
-            st.binary(min_size=1, max_size=3),
-            st.integers(0, 30),
-        ),
-    )
+_SCALE_TOKENS = st.one_of(
+    st.sampled_from([b"-1.0", b"1.0", b"-1", b"0", b"-0.0", b"nan", b"inf", b"-inf", b"1e400", b"x"]),
+    st.floats().map(lambda f: repr(f).encode()),
+    st.binary(min_size=1, max_size=4),
 )
-def test_pfm_fuzz_only_input_error(tmp_path, data):
+
+
+def _header_file(magic, width, height, scale, separators, body):
+    """The file's bytes and, for a clean header (no empty or blank token, no empty separator),
+    its ``(magic, width, height)`` tokens, which a successful read must follow; else None."""
+    tokens = (magic, width, height, scale)
+    header = b"".join(token + separator for token, separator in zip(tokens, separators))
+    clean = all(t and not any(chr(b).isspace() for b in t) for t in tokens) and all(separators)
+    return header + bytes(range(256))[:body], (magic, width, height) if clean else None
+
+
+_PFM_HEADERS = st.builds(
+    _header_file,
+    magic=st.one_of(st.sampled_from([b"Pf", b"PF", b"pf", b"P5", b"PFF"]), st.binary(min_size=1, max_size=3)),
+    width=_NUMBER_TOKENS,
+    height=_NUMBER_TOKENS,
+    scale=_SCALE_TOKENS,
+    separators=st.lists(_SEPARATORS, min_size=4, max_size=4),
+    body=st.integers(0, 200),
+)
+
+
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=st.one_of(_PFM_BYTES, _PFM_HEADERS))
+def test_pfm_fuzz_only_input_error(tmp_path, case):
+    """Fuzzed bytes and fuzzed headers: an image, or an ``InputError`` naming the file in one line."""
+    data, expected = case
     path = tmp_path / "fuzz.pfm"
     path.write_bytes(data)
     try:
         out = read_pfm(path)
-    except InputError as exc:
-        assert "\n" not in str(exc)
+    except InputError as error:
+        assert "\n" not in str(error) and str(path) in str(error)
     else:
         assert out.dtype == np.float32 and out.ndim in (2, 3)
+        if expected is not None:  # a clean header: the size is the header's
+            magic, width, height = expected
+            channels = 3 if magic == b"PF" else 1
+            assert out.shape[:2] == (int(height), int(width))
+            assert out.size == int(height) * int(width) * channels
 
 
 def test_write_pfm_rejects_bad_input(tmp_path):
@@ -247,6 +301,47 @@ def test_read_image_missing_and_corrupt(tmp_path):
     with pytest.raises(InputError, match="cannot read image .*bad.png") as info:
         read_image(tmp_path / "bad.png")
     assert "\n" not in str(info.value)
+
+
+@pytest.fixture(scope="module")
+def small_png(texture):
+    """A 6x9 colour image and its PNG bytes."""
+    image = texture(6, (6, 9, 3))
+    buffer = BytesIO()
+    iio.imwrite(buffer, image, extension=".png")
+    return image, buffer.getvalue()
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cut=st.integers(0, 400),
+       flips=st.lists(st.tuples(st.integers(0, 400), st.integers(0, 255)), max_size=3))
+def test_damaged_png_raises_only_input_error(tmp_path, small_png, cut, flips):
+    image, png = small_png
+    data = bytearray(png)
+    for position, value in flips:
+        if position < len(data):
+            data[position] = value
+    data = bytes(data[: len(data) - min(cut, len(data))])
+    path = tmp_path / "damaged.png"
+    path.write_bytes(data)
+    try:
+        out = read_image(path)
+    except InputError as error:
+        assert "\n" not in str(error) and str(path) in str(error)
+    else:
+        assert out.ndim in (2, 3) and out.dtype in (np.uint8, np.uint16)
+        if not flips:  # only the trailing IEND chunk was cut: the pixels are all there
+            np.testing.assert_array_equal(out, image)
+
+
+def test_read_image_one_bit_png(tmp_path, texture):
+    from PIL import Image
+
+    bits = texture(5, (24, 40)) > 127
+    Image.fromarray(bits).save(tmp_path / "bits.png")
+    image = read_image(tmp_path / "bits.png")
+    assert image.dtype == np.uint8
+    np.testing.assert_array_equal(image, bits * 255)
 
 
 def test_to_float_image():

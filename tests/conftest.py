@@ -1,0 +1,151 @@
+"""Fixtures shared by the test files.
+
+pytest imports test files with ``--import-mode=importlib``, so a test file cannot import
+another one nor this file: what several files share is a fixture here.
+
+- ``texture``: reproducible random uint8 images.
+- ``small_pair``: a 24x40 pair with disparity 3 written in every input form, and broken files.
+- ``middeval3``: builds a MiddEval3-like data folder of three small scenes.
+- ``run_cli``: ``sswjax.cli.main`` in process, returning ``(exit code, stdout, stderr)``.
+- ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import NamedTuple
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from sswjax.data.io import write_pfm
+
+TESTS = Path(__file__).parent
+HEIGHT, WIDTH, SHIFT, NDISP = 24, 40, 3, 8
+
+
+def _texture(seed: int, shape=(HEIGHT, WIDTH, 3)) -> np.ndarray:
+    return (np.random.default_rng(seed).random(shape) * 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="session")
+def texture():
+    """``texture(seed, shape=(24, 40, 3))``: a uniform random uint8 image, fixed by ``seed``."""
+    return _texture
+
+
+class SmallPair(NamedTuple):
+    """Where the files of :func:`small_pair` are, and the pair's geometry."""
+
+    folder: Path
+    height: int
+    width: int
+    shift: int  # the disparity of every pixel (np.roll of the right view)
+    ndisp: int  # the search range the tests use
+
+
+@pytest.fixture(scope="session")
+def small_pair(tmp_path_factory) -> SmallPair:
+    """A 24x40 pair with disparity 3 as colour, gray, 16-bit gray and RGBA PNGs, plus
+    ``small.png`` (40x5), ``narrow.png`` (30x20), ``animated.gif`` (two frames) and broken
+    files: ``truncated.png``, ``corrupt.png``, ``random.png``, ``empty.png`` and a folder
+    ``folder.png``. Read-only: tests write their outputs elsewhere."""
+    folder = tmp_path_factory.mktemp("small-pair")
+    right = _texture(0)
+    left = np.roll(right, SHIFT, axis=1)
+    iio.imwrite(folder / "left.png", left)
+    iio.imwrite(folder / "right.png", right)
+    gray = [np.round(im.astype(np.float64) @ [0.299, 0.587, 0.114]).astype(np.uint8) for im in (left, right)]
+    iio.imwrite(folder / "left_gray.png", gray[0])
+    iio.imwrite(folder / "right_gray.png", gray[1])
+    iio.imwrite(folder / "left_gray16.png", gray[0].astype(np.uint16) * 257)
+    iio.imwrite(folder / "right_gray16.png", gray[1].astype(np.uint16) * 257)
+    alpha = _texture(1, (HEIGHT, WIDTH, 1))
+    iio.imwrite(folder / "left_rgba.png", np.concatenate([left, alpha], axis=-1))
+    iio.imwrite(folder / "right_rgba.png", np.concatenate([right, alpha[::-1]], axis=-1))
+    iio.imwrite(folder / "small.png", right[:5])
+    iio.imwrite(folder / "narrow.png", right[:20, :30])
+    iio.imwrite(folder / "animated.gif", np.stack([left, right]))
+    png = (folder / "left.png").read_bytes()
+    (folder / "truncated.png").write_bytes(png[: len(png) // 2])
+    corrupt = bytearray(png)
+    idat = png.index(b"IDAT") + 40
+    corrupt[idat : idat + 8] = bytes(8)  # zeroes inside the compressed pixels
+    (folder / "corrupt.png").write_bytes(bytes(corrupt))
+    (folder / "random.png").write_bytes(np.random.default_rng(2).bytes(300))
+    (folder / "empty.png").write_bytes(b"")
+    (folder / "folder.png").mkdir()
+    return SmallPair(folder, HEIGHT, WIDTH, SHIFT, NDISP)
+
+
+class FakeMiddEval3:
+    """``middeval3(root)`` writes ``root/trainingQ/<scene>`` for the three :attr:`scenes`, each
+    a ``height`` x width pair with disparity ``shift`` (ndisp ``ndisp``), its ground truth
+    (``inf`` in the first ``shift`` columns) and nonocc mask, and returns ``root``."""
+
+    scenes = (("Adirondack", 40), ("Teddy", 44), ("Vintage", 48))  # widths differ: one compile each
+    height, shift, ndisp = HEIGHT, SHIFT, NDISP
+
+    def __call__(self, root: Path) -> Path:
+        for seed, (name, width) in enumerate(self.scenes):
+            self.scene(root / "trainingQ" / name, width, seed)
+        return root
+
+    def scene(self, folder: Path, width: int, seed: int) -> None:
+        folder.mkdir(parents=True)
+        right = _texture(seed, (self.height, width, 3))
+        iio.imwrite(folder / "im0.png", np.roll(right, self.shift, axis=1))
+        iio.imwrite(folder / "im1.png", right)
+        (folder / "calib.txt").write_text(f"cam0=[1 0 0; 0 1 0; 0 0 1]\nndisp={self.ndisp}\nvmin=0\nvmax=7\n")
+        truth = np.full((self.height, width), self.shift, np.float32)
+        truth[:, : self.shift] = np.inf
+        write_pfm(folder / "disp0GT.pfm", truth)
+        mask = np.full((self.height, width), 255, np.uint8)
+        mask[:, : self.shift] = 0
+        iio.imwrite(folder / "mask0nocc.png", mask)
+
+
+@pytest.fixture(scope="session")
+def middeval3() -> FakeMiddEval3:
+    return FakeMiddEval3()
+
+
+@pytest.fixture()
+def run_cli(capsys):
+    """``run_cli(argv)``: ``(exit code, stdout, stderr)`` of ``sswjax.cli.main`` (arguments
+    converted to strings); argparse's usage errors give their exit code like the console script."""
+    from sswjax.cli import main
+
+    def run(argv):
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exit_:
+            code = exit_.code
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return run
+
+
+def _run_on_devices(script: str, devices: int = 2, timeout: float = 600) -> str:
+    """Run ``script`` with ``python -c`` and ``devices`` simulated CPU devices (``XLA_FLAGS``);
+    ``tests/`` is importable there (``from test_batching import ...``). Returns the last line
+    of its stdout; a failure shows the script's stderr."""
+    env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}")
+    prelude = f"import sys\nsys.path.insert(0, {str(TESTS)!r})\n"
+    run = subprocess.run([sys.executable, "-c", prelude + script], env=env, capture_output=True,
+                         text=True, timeout=timeout)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.strip().splitlines()
+    return lines[-1] if lines else ""
+
+
+@pytest.fixture(scope="session")
+def run_on_devices():
+    """``run_on_devices(script, devices=2)``: the last stdout line of ``script`` run in a fresh
+    Python process on ``devices`` simulated CPU devices, with ``tests/`` on ``sys.path``."""
+    return _run_on_devices

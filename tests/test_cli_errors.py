@@ -1,0 +1,210 @@
+"""Bad input on the command line: one line on stderr, exit status 2, outputs left as they were.
+
+Every ``sswjax match`` and ``sswjax evaluate`` row of the README table "Bad input: what the user
+sees" names its test here. The inputs are conftest's ``small_pair`` files (24x40, disparity 3)
+and ``middeval3`` folders; ``ndisp`` is 8, so the in-process runs share one or two compilations.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sswjax.cli import main
+from sswjax.data.io import read_pfm, write_pfm
+
+NDISP = 8  # conftest's small_pair.ndisp
+CLI = [sys.executable, "-m", "sswjax.cli"]
+
+
+@pytest.fixture(scope="module")
+def files(small_pair) -> Path:
+    return small_pair.folder
+
+
+def _assert_one_line_error(code, err, message):
+    assert code == 2, err
+    assert err.startswith("sswjax: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    assert message in err, err
+
+
+# ----------------------------------------------------------------------------- sswjax match
+
+
+@pytest.mark.parametrize(
+    "left, right, extra, message",
+    [
+        ("missing.png", "right.png", [], "image not found: {d}/missing.png"),
+        ("left.png", "folder.png", [], "cannot read image {d}/folder.png: Is a directory"),
+        ("left.png", "empty.png", [], "cannot read image {d}/empty.png: the file is empty"),
+        ("random.png", "right.png", [], "cannot read image {d}/random.png: not an image file"),
+        ("left.png", "truncated.png", [], "cannot read image {d}/truncated.png: the file is truncated"),
+        ("corrupt.png", "right.png", [], "cannot read image {d}/corrupt.png: the file is corrupt ("),
+        ("animated.gif", "right.png", [],
+         "must be a single gray or RGB(A) image, got array shape (2, 24, 40, 3)"),
+        ("left.png", "narrow.png", [], "left and right images differ in size: 40x24 and 30x20"),
+        ("small.png", "small.png", ["--ndisp", "4"],
+         "images of 40x5 are smaller than the census window 9x7: both sides must be at least 9 pixels"),
+        ("left.png", "right.png", ["--ndisp", "0"], "ndisp must be in [1, 39] for this width, got 0"),
+        ("left.png", "right.png", ["--ndisp", "-3"], "ndisp must be in [1, 39] for this width, got -3"),
+        ("left.png", "right.png", ["--ndisp", "40"], "ndisp must be in [1, 39] for this width, got 40"),
+        ("left.png", "right.png", ["--ndisp", "2.5"], "argument --ndisp: invalid int value: '2.5'"),
+        ("left.png", "right.png", ["--ndisp", "eight"], "argument --ndisp: invalid int value: 'eight'"),
+    ],
+    ids=["missing", "directory", "empty", "not-an-image", "truncated-png", "corrupt-png", "multi-frame",
+         "size-mismatch", "below-census-window", "ndisp-0", "ndisp-negative", "ndisp-width",
+         "ndisp-float", "ndisp-text"],
+)
+def test_match_bad_input(files, tmp_path, run_cli, left, right, extra, message):
+    out = tmp_path / "d.pfm"
+    write_pfm(out, np.full((2, 3), 7, np.float32))  # the user's earlier result
+    argv = ["match", files / left, files / right, *(extra or ["--ndisp", NDISP]), "-o", out]
+    code, _, err = run_cli(argv)
+    _assert_one_line_error(code, err, message.format(d=files))
+    assert (read_pfm(out) == 7).all()  # survives the failed run
+    assert [p.name for p in tmp_path.iterdir()] == ["d.pfm"]  # and no temporary debris
+
+
+def _drop_privileges_and_run(argv, err_path: Path) -> int:
+    """Run ``main(argv)`` in a forked child as user nobody (root reads every file)."""
+    with open(err_path, "w") as err_file:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # JAX warns about fork() in a threaded process
+            pid = os.fork()
+        if pid == 0:  # child: never return into pytest
+            code = 99
+            try:
+                os.setgid(65534)
+                os.setuid(65534)
+                os.dup2(err_file.fileno(), 2)
+                sys.stderr = os.fdopen(2, "w")
+                code = main(argv)
+                sys.stderr.flush()
+            finally:
+                os._exit(code)
+    return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+
+
+def test_match_unreadable_image(files, run_cli):
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="sswjax-unreadable-"))  # traversable by nobody
+    try:
+        folder.chmod(0o755)
+        locked = folder / "locked.png"
+        locked.write_bytes((files / "left.png").read_bytes())
+        locked.chmod(0)
+        argv = ["match", str(locked), str(files / "right.png"), "--ndisp", "8", "-o", str(folder / "d.pfm")]
+        if os.geteuid() == 0:
+            code = _drop_privileges_and_run(argv, folder / "stderr.txt")
+            err = (folder / "stderr.txt").read_text()
+        else:
+            code, _, err = run_cli(argv)
+        _assert_one_line_error(code, err, f"cannot read image {locked}: Permission denied")
+        assert not (folder / "d.pfm").exists()
+    finally:
+        for path in folder.iterdir():
+            path.unlink()
+        folder.rmdir()
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ('{"dynamic": {"tad_truncation": NaN}}',
+         "parameter tad_truncation must be a finite number > 0, got nan"),
+        ('{"tad_truncation": Infinity}', "parameter tad_truncation must be a finite number > 0, got inf"),
+        ('{"dynamic": {"tad_truncation": -0.1}}',
+         "parameter tad_truncation must be a finite number > 0, got -0.1"),
+        ('{"census_weight": -1}', "parameter census_weight must be a finite number >= 0, got -1.0"),
+        ('{"static": {"census_width": 17}}', "parameter census_width must be in [1, 15], got 17"),
+        ('{"static": {"census_height": 8}}', "parameter census_height must be odd, got 8"),
+        ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be in [0, 20], got -1"),
+        ('{"static": {"radius": 3}}', "unknown static parameter 'radius'"),
+        ('{"bogus": 1}', "unknown parameter 'bogus'"),
+        ('{"static": {"census_width": "9"}}', "parameter census_width must be an integer, got '9'"),
+        ('{"lr_check": "yes"}', "parameter lr_check must be true or false, got 'yes'"),
+        ('{"census_weight": null}', "parameter census_weight must be a number, got None"),
+        ("[1, 2]", "parameters must be a JSON object, got list"),
+        ("{not json", "cannot read parameter file {p}: Expecting property name"),
+        (b"\xff\xfe{}", "cannot read parameter file {p}: 'utf-8' codec can't decode"),
+    ],
+    ids=["nan", "infinity", "negative-truncation", "negative-weight", "int-too-large", "even-census",
+         "negative-radius", "unknown-static-key", "unknown-key", "string-for-int", "string-for-bool",
+         "null-for-number", "not-an-object", "bad-json", "not-utf8"],
+)
+def test_match_bad_params_json(files, tmp_path, run_cli, content, message):
+    params = tmp_path / "params.json"
+    params.write_bytes(content if isinstance(content, bytes) else content.encode())
+    argv = ["match", files / "left.png", files / "right.png", "--ndisp", NDISP,
+            "-o", tmp_path / "d.pfm", "--params", params]
+    code, _, err = run_cli(argv)
+    _assert_one_line_error(code, err, message.format(p=params))
+    if not message.startswith("cannot read"):
+        assert err.startswith(f"sswjax: error: {params}: ")  # names the file
+    assert not (tmp_path / "d.pfm").exists()
+
+
+def test_match_output_is_a_folder(files, tmp_path, run_cli):
+    code, _, err = run_cli(["match", files / "left.png", files / "right.png", "--ndisp", NDISP,
+                            "-o", tmp_path])
+    _assert_one_line_error(code, err, f"output {tmp_path} is a folder, expected a file name")
+
+
+def test_debug_shows_the_traceback(files, tmp_path):
+    argv = ["match", str(files / "missing.png"), str(files / "right.png"), "--ndisp", "8",
+            "-o", str(tmp_path / "d.pfm")]
+    plain = subprocess.run(CLI + argv, capture_output=True, text=True, timeout=120)
+    assert plain.returncode == 2 and plain.stderr.count("\n") == 1 and "Traceback" not in plain.stderr
+    debug = subprocess.run(CLI + ["--debug"] + argv, capture_output=True, text=True, timeout=120)
+    assert debug.returncode == 1
+    assert debug.stderr.startswith("Traceback (most recent call last):")
+    assert "sswjax.data.io.InputError: image not found" in debug.stderr
+
+
+# ----------------------------------------------------------------------------- sswjax evaluate
+
+
+def _break_truncated_gt(scene: Path) -> None:
+    data = (scene / "disp0GT.pfm").read_bytes()
+    (scene / "disp0GT.pfm").write_bytes(data[:100])
+
+
+@pytest.mark.parametrize(
+    "damage, extra, message",
+    [
+        (lambda s: (s / "im1.png").unlink(), [], "scene Teddy: missing im1.png in {s}"),
+        (lambda s: (s / "im0.png").unlink(), [], "scene Teddy: missing im0.png in {s}"),
+        (lambda s: (s / "calib.txt").unlink(), [], "scene Teddy: missing calib.txt in {s}"),
+        (lambda s: (s / "disp0GT.pfm").unlink(), [],
+         "cannot score scene(s) without disp0GT.pfm: Teddy in {s.parent}"),
+        (lambda s: (s / "mask0nocc.png").unlink(), [],
+         "cannot score scene(s) without mask0nocc.png: Teddy in {s.parent}"),
+        (_break_truncated_gt, [], "PFM file {s}/disp0GT.pfm is truncated: 86 of 4224 data bytes"),
+        (lambda s: (s / "disp0GT.pfm").write_bytes(b"P5\n44 24\n255\n" + bytes(44 * 24)),
+         [], "PFM file {s}/disp0GT.pfm has bad magic b'P5', expected b'Pf' or b'PF'"),
+        (lambda s: (s / "im1.png").write_bytes(b"\x89PNG\r\n\x1a\n garbage"), [],
+         "cannot read image {s}/im1.png: the file is truncated"),
+        (lambda s: (s / "calib.txt").write_text("baseline=193.001\n"), [],
+         "calibration file {s}/calib.txt needs ndisp=<positive integer>, got None"),
+        (lambda s: None, ["--scenes", "Nope"], "unknown scene(s) Nope in"),
+        (lambda s: None, ["--resume"], "--resume needs -o/--output: the folder of the run to continue"),
+        (lambda s: None, ["--methods", " , "], "no method given in --methods ' , '"),
+    ],
+    ids=["no-im1", "no-im0", "no-calib", "no-ground-truth", "no-mask", "truncated-pfm", "bad-pfm-magic",
+         "corrupt-png", "calib-without-ndisp", "unknown-scene", "resume-without-output", "no-method"],
+)
+def test_evaluate_bad_folder(tmp_path, run_cli, middeval3, damage, extra, message):
+    root = middeval3(tmp_path / "MiddEval3")
+    scene = root / "trainingQ" / "Teddy"
+    damage(scene)
+    code, out, err = run_cli(["evaluate", "--data", root, "--methods", "ssw", *extra])
+    _assert_one_line_error(code, err, message.format(s=scene))
+    assert out == ""  # failed before any scene was run

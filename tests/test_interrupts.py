@@ -1,0 +1,182 @@
+"""Nothing lost on Ctrl-C: finished scenes are kept, ``--resume`` continues, outputs survive.
+
+The SIGINT test sends a real signal to a ``sswjax evaluate`` process (with a cheaper parameter
+set: the mechanics are what is tested); the others interrupt in process, with a fake method
+that needs no JAX. Scenes are conftest's ``middeval3`` folders (24 rows, disparity 3, ndisp 8).
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax.data.io import read_pfm, write_pfm
+
+CLI = [sys.executable, "-m", "sswjax.cli"]
+
+
+def _popen_with_default_sigint(argv, **kwargs) -> subprocess.Popen:
+    """``Popen`` whose child handles SIGINT as in an interactive terminal.
+
+    A shell without job control starts background jobs with SIGINT ignored, and children
+    inherit that; only then is the default disposition restored in the child (which needs a
+    ``preexec_fn``, so a fork of this multithreaded process: JAX warns about it).
+    """
+    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        return subprocess.Popen(argv, **kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return subprocess.Popen(
+            argv, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL), **kwargs
+        )
+
+
+def test_evaluate_sigint_keeps_finished_scenes_and_resume_skips_them(tmp_path, middeval3):
+    root = middeval3(tmp_path / "MiddEval3")
+    scenes, height, shift = middeval3.scenes, middeval3.height, middeval3.shift
+    params = tmp_path / "cheap.json"  # faster compilation; the mechanics are what is tested
+    params.write_text(json.dumps({"n_segments": 0, "aggregation_iterations": 1, "refine_iterations": 1,
+                                  "lr_check": False}))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.md").write_text("earlier results\n")
+    argv = ["evaluate", "--data", str(root), "--methods", "ssw", "--params", str(params), "-o", str(out)]
+    first_done = out / "ssw" / scenes[0][0] / "timeSSW.txt"  # written after the scene's PFM
+    with open(tmp_path / "stderr1.txt", "w") as err_file:
+        process = _popen_with_default_sigint(CLI + argv, stdout=subprocess.DEVNULL, stderr=err_file)
+        try:
+            deadline = time.monotonic() + 240
+            while not first_done.exists():
+                assert process.poll() is None, (tmp_path / "stderr1.txt").read_text()
+                assert time.monotonic() < deadline, "no scene finished within 240 s"
+                time.sleep(0.01)
+            process.send_signal(signal.SIGINT)
+            code = process.wait(timeout=240)
+        finally:
+            if process.poll() is None:
+                process.kill()
+    err = (tmp_path / "stderr1.txt").read_text()
+    assert code == 130, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    prefix = "sswjax: interrupted; "
+    assert last.startswith(prefix)
+    assert f"of 3 scene results are saved in {out}; continue with: sswjax " in last
+    finished = [name for name, _ in scenes if (out / "ssw" / name / "disp0SSW.pfm").exists()
+                and (out / "ssw" / name / "timeSSW.txt").exists()]
+    assert 1 <= len(finished) < 3 and finished == [name for name, _ in scenes[: len(finished)]]
+    assert last.startswith(f"{prefix}{len(finished)} of 3 scene results")
+    assert (out / "results.md").read_text() == "earlier results\n"  # only written at the end
+    assert not list(out.rglob("*.tmp"))
+    saved = {}
+    for name in finished:
+        pfm = out / "ssw" / name / "disp0SSW.pfm"
+        assert read_pfm(pfm).shape == (height, dict(scenes)[name])  # complete and readable
+        saved[name] = (pfm.read_bytes(), pfm.stat().st_mtime_ns)
+
+    # run exactly the command that the message suggests
+    command = shlex.split(last.split("continue with: ", 1)[1])
+    assert command[0] == "sswjax" and command[-1] == "--resume"
+    resumed = subprocess.run(CLI + command[1:], capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"ssw: resumed {len(finished)} of 3 scenes from {out / 'ssw'}" in resumed.stderr
+    for name, (content, mtime) in saved.items():  # not recomputed, not rewritten
+        pfm = out / "ssw" / name / "disp0SSW.pfm"
+        assert pfm.read_bytes() == content and pfm.stat().st_mtime_ns == mtime
+    for name, width in scenes:
+        disparity = read_pfm(out / "ssw" / name / "disp0SSW.pfm")
+        assert disparity.shape == (height, width)
+        assert np.median(disparity[:, 12:]) == pytest.approx(shift, abs=0.05)
+    results = (out / "results.md").read_text()
+    assert "| ssw |" in results and all(f"| {name} |" in results for name, _ in scenes)
+    assert len((out / "metrics.csv").read_text().splitlines()) == 1 + 3 * 2
+    assert "wrote" in resumed.stdout
+
+
+def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, monkeypatch):
+    out = tmp_path / "d.pfm"
+    write_pfm(out, np.full((2, 3), 7, np.float32))
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sswjax, "match", interrupted)
+    files = small_pair.folder
+    argv = ["match", files / "left.png", files / "right.png", "--ndisp", small_pair.ndisp, "-o", out]
+    code, _, err = run_cli(argv)
+    assert code == 130 and err == "sswjax: interrupted\n"
+    assert (read_pfm(out) == 7).all() and [p.name for p in tmp_path.iterdir()] == ["d.pfm"]
+
+
+@pytest.fixture()
+def fake_method(monkeypatch, middeval3):
+    """A method "fake" without JAX: disparity 3 everywhere; counts its calls per scene width."""
+    from sswjax.evaluation import methods
+
+    calls = []
+
+    def fake(left, right, ndisp):
+        calls.append(left.shape[1])
+        if getattr(fake, "interrupt_at", None) == len(calls):
+            raise KeyboardInterrupt
+        return np.full(left.shape[:2], middeval3.shift, np.float32)
+
+    monkeypatch.setitem(methods.PEERS, "fake", fake)
+    fake.calls = calls
+    return fake
+
+
+def test_evaluate_interrupted_in_process_messages(tmp_path, run_cli, middeval3, fake_method):
+    root = middeval3(tmp_path / "MiddEval3")
+    out = tmp_path / "out"
+    fake_method.interrupt_at = 2
+    code, stdout, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out])
+    assert code == 130 and stdout == ""
+    expected = (f"sswjax: interrupted; 1 of 3 scene results are saved in {out}; continue with: "
+                f"sswjax evaluate --data {root} --methods fake -o {out} --resume")
+    assert err.strip().splitlines()[-1] == expected
+    assert sorted(p.name for p in (out / "fake").iterdir()) == ["Adirondack"]
+    # without -o nothing can be kept, and the message says so
+    fake_method.calls.clear()
+    code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake"])
+    assert code == 130
+    assert err.strip().splitlines()[-1] == ("sswjax: interrupted; nothing was saved (with -o DIR "
+                                            "finished scenes are kept and --resume continues)")
+
+
+def test_evaluate_resume_recomputes_only_missing_or_damaged_scenes(tmp_path, run_cli, middeval3,
+                                                                  fake_method):
+    root = middeval3(tmp_path / "MiddEval3")
+    out = tmp_path / "out"
+    assert run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out])[0] == 0
+    first_csv = (out / "metrics.csv").read_text()
+    assert fake_method.calls == [40, 44, 48]
+    folders = {name: out / "fake" / name for name, _ in middeval3.scenes}
+    (folders["Adirondack"] / "timeFAKE.txt").write_text("12.5\n")  # a recorded time is kept
+    kept_mtime = (folders["Adirondack"] / "disp0FAKE.pfm").stat().st_mtime_ns
+    pfm = folders["Teddy"] / "disp0FAKE.pfm"
+    pfm.write_bytes(pfm.read_bytes()[:-10])  # damaged by hand: recomputed
+    (folders["Vintage"] / "timeFAKE.txt").unlink()  # interrupted between the two writes
+    fake_method.calls.clear()
+    code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out, "--resume"])
+    assert code == 0, err
+    assert fake_method.calls == [44, 48]
+    assert f"fake Teddy: saved result unusable (PFM file {pfm} is truncated: " in err
+    assert f"fake: resumed 1 of 3 scenes from {out / 'fake'}" in err
+    assert (folders["Adirondack"] / "disp0FAKE.pfm").stat().st_mtime_ns == kept_mtime
+    assert read_pfm(pfm).shape == (middeval3.height, 44)
+    def with_time(row: str) -> str:  # the "seconds" column is the fourth
+        cells = row.split(",")
+        return ",".join(cells[:3] + ["12.500"] + cells[4:]) if cells[1] == "Adirondack" else row
+
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert rows[1:] == [with_time(r) for r in first_csv.splitlines()[1:]]  # same metrics, its time
