@@ -28,7 +28,7 @@ scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]
 left, right = (np.repeat(np.repeat(im, scale, axis=0), scale, axis=1) for im in (scene.left, scene.right))
 params = sswjax.Params().replace(disparity_chunk=chunk)
 start = time.perf_counter()
-disparity = sswjax.match(left, right, scene.ndisp * scale, params)
+disparity = sswjax.match(left, right, scene.ndisp * scale, params=params)
 seconds = time.perf_counter() - start
 print(json.dumps({"shape": list(disparity.shape), "ndisp": scene.ndisp * scale, "seconds": seconds,
                   "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))

@@ -115,7 +115,7 @@ def main() -> None:
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
-    scenes = load_middeval3(find_data_root(args.data), scenes=args.scenes)
+    scenes = load_middeval3(find_data_root(data=args.data), scenes=args.scenes)
     rows = []
     if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
         from sswjax.evaluation.peers import pandora_disparity

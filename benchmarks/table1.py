@@ -16,13 +16,13 @@ from pathlib import Path
 
 from sswjax.cli import main as sswjax_main
 from sswjax.data.datasets import find_data_root, load_middeval3
-from sswjax.evaluation.runner import THRESHOLDS, SceneResult
 from sswjax.data.io import read_pfm
 from sswjax.evaluation.methods import submission_name
 from sswjax.evaluation.metrics import evaluate_disparity
+from sswjax.evaluation.runner import THRESHOLDS, SceneResult
+from sswjax.registry import AGGREGATORS, VARIANTS
 
-METHODS = ("ssw", "bf", "gf", "igf", "mf", "box", "sgbm", "ssw-noseg", "ssw-norefine", "ssw-nolr",
-           "ssw-guide", "ssw-tad", "ssw-gm", "ssw-census")
+METHODS = (*AGGREGATORS, "sgbm", *VARIANTS)  # every aggregator and ablation of the registry
 FIGURE_METHODS = ("ssw", "gf", "mf", "sgbm")
 FIGURE_SCENES = ("Teddy", "ArtL", "Playtable", "Vintage")
 
@@ -31,7 +31,7 @@ def figure_from_outputs(out: Path, data: Path | None) -> Path:
     """Draw the README figure from the PFMs that ``sswjax evaluate`` wrote into ``out``."""
     from sswjax.evaluation.figures import comparison_figure
 
-    scenes = load_middeval3(find_data_root(data), scenes=list(FIGURE_SCENES))
+    scenes = load_middeval3(find_data_root(data=data), scenes=list(FIGURE_SCENES))
     results = {}
     for method in FIGURE_METHODS:
         rows = []

@@ -9,18 +9,21 @@ filling and side-window refinement.
 >>> disparity = sswjax.match(left, right, ndisp=64)          # doctest: +SKIP
 """
 
-from sswjax.params import DynamicParams, Params, StaticParams, load_params, save_params
+from sswjax.params import DynamicParams, Params, StaticParams, load_params, preset, save_params
+from sswjax.registry import PRESETS
 from sswjax.api import ShapeBuckets, match
 from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity
 
 __all__ = [
     "DynamicParams",
+    "PRESETS",
     "Params",
     "ShapeBuckets",
     "StaticParams",
     "aggregated_cost",
     "load_params",
     "match",
+    "preset",
     "save_params",
     "select_and_refine",
     "ssw_disparity",

@@ -47,12 +47,57 @@ def bucket_shape(height: int, width: int, ndisp: int, buckets: ShapeBuckets) -> 
     return up(height, buckets.size_step), padded_width, padded_ndisp
 
 
+def to_float_image(image, *, name: str = "image") -> np.ndarray:
+    """The one conversion of a user's image to the pipeline's float32 ``(H, W, C)`` in [0, 1].
+
+    Parameters
+    ----------
+    image : array_like (H, W) or (H, W, 1|3|4)
+        uint8 (divided by 255), uint16 (divided by 65535) or floating (used as given, assumed in
+        [0, 1], must be finite in float32). Alpha is dropped.
+    name : str
+        How error messages call the image (``"left"``, ``"right"``).
+
+    Returns
+    -------
+    numpy.ndarray float32 (H, W, C), C in {1, 3} (a new array)
+
+    Raises
+    ------
+    ValueError
+        On a bad shape, an empty image, another dtype (bool, int32, ...) or non-finite values.
+
+    Examples
+    --------
+    >>> to_float_image(np.array([[0, 255]], dtype=np.uint8))[..., 0]
+    array([[0., 1.]], dtype=float32)
+    """
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.ndim != 3 or image.shape[-1] not in (1, 3, 4):
+        raise ValueError(f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise ValueError(f"{name} image is empty, got shape {image.shape}")
+    image = image[..., :3]
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / np.float32(255)
+    if image.dtype == np.uint16:
+        return image.astype(np.float32) / np.float32(65535)
+    if not np.issubdtype(image.dtype, np.floating):
+        raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        image = image.astype(np.float32)
+    if not np.isfinite(image).all():
+        raise ValueError(f"{name} image contains NaN or infinite values")
+    return image
+
+
 def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     """Validate a user's pair and convert it to float32 ``(H, W, C)`` in [0, 1].
 
-    Gray ``(H, W)`` or ``(H, W, 1)``, RGB ``(H, W, 3)`` and RGBA ``(H, W, 4)`` (alpha dropped)
-    are accepted, as uint8, uint16 or floating arrays (floats must be finite; they are used as
-    given, assumed in [0, 1]). If one image is gray and the other colour, both are used as gray.
+    Each image goes through :func:`to_float_image`. If one image is gray and the other colour,
+    both are used as gray (BT.601 luma of the colour one).
 
     Returns
     -------
@@ -60,30 +105,7 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     """
     from sswjax.stages.color import rgb_to_gray
 
-    def convert(name, image):
-        image = np.asarray(image)
-        if image.ndim == 2:
-            image = image[..., None]
-        if image.ndim != 3 or image.shape[-1] not in (1, 3, 4):
-            raise ValueError(
-                f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}"
-            )
-        if image.shape[0] == 0 or image.shape[1] == 0:
-            raise ValueError(f"{name} image is empty, got shape {image.shape}")
-        image = image[..., :3]
-        if image.dtype == np.uint8:
-            image = image.astype(np.float32) / 255
-        elif image.dtype == np.uint16:
-            image = image.astype(np.float32) / 65535
-        elif np.issubdtype(image.dtype, np.floating):
-            image = image.astype(np.float32)
-            if not np.isfinite(image).all():
-                raise ValueError(f"{name} image contains NaN or infinite values")
-        else:
-            raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
-        return image
-
-    left, right = convert("left", left), convert("right", right)
+    left, right = to_float_image(left, name="left"), to_float_image(right, name="right")
     if left.shape[:2] != right.shape[:2]:
         raise ValueError(
             f"left and right images differ in size: {left.shape[1]}x{left.shape[0]} "
@@ -125,7 +147,7 @@ def pad_to_bucket(left, right, height: int, width: int) -> tuple[np.ndarray, np.
 
 
 def match(
-    left, right, ndisp: int, params: Params | None = None, *, buckets: ShapeBuckets | None = None
+    left, right, ndisp: int, *, params: Params | None = None, buckets: ShapeBuckets | None = None
 ) -> np.ndarray:
     """Dense disparity map of a rectified stereo pair with the SSW method.
 

@@ -33,7 +33,7 @@ BATCH_AXIS = "batch"
 """Name of the mesh axis the batch is split over."""
 
 
-def device_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
+def device_mesh(*, devices: Sequence[jax.Device] | None = None) -> Mesh:
     """1-D mesh with axis :data:`BATCH_AXIS` over ``devices`` (default: all ``jax.devices()``).
 
     Examples
@@ -93,7 +93,7 @@ def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: 
     return np.asarray(_batched(*sharded, params, ndisp=ndisp))[:size]
 
 
-def match_batch(lefts, rights, ndisp: int, params: Params | None = None, *, devices=None) -> np.ndarray:
+def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devices=None) -> np.ndarray:
     """Disparity maps of a batch of equal-size pairs, the batch split over ``devices`` in one call.
 
     Parameters
@@ -112,7 +112,7 @@ def match_batch(lefts, rights, ndisp: int, params: Params | None = None, *, devi
     --------
     >>> import numpy as np
     >>> r = np.random.default_rng(0).random((3, 24, 40, 3), dtype=np.float32)
-    >>> match_batch(np.roll(r, 2, axis=2), r, 8, Params().replace(n_segments=8)).shape
+    >>> match_batch(np.roll(r, 2, axis=2), r, 8, params=Params().replace(n_segments=8)).shape
     (3, 24, 40)
     """
     lefts, rights = np.asarray(lefts), np.asarray(rights)
@@ -123,14 +123,14 @@ def match_batch(lefts, rights, ndisp: int, params: Params | None = None, *, devi
     params = Params() if params is None else check_params(params)
     pairs = [checked_pair(left, right, ndisp, params) for left, right in zip(lefts, rights)]
     left_batch, right_batch = (np.stack(views) for views in zip(*pairs))
-    return _run_sharded(left_batch, right_batch, None, params, int(ndisp), device_mesh(devices))
+    return _run_sharded(left_batch, right_batch, None, params, int(ndisp), device_mesh(devices=devices))
 
 
 def iter_match_scenes(
     pairs: Sequence[tuple[np.ndarray, np.ndarray]],
     ndisps: Sequence[int],
-    params: Params | None = None,
     *,
+    params: Params | None = None,
     buckets: ShapeBuckets = ShapeBuckets(),
     devices: Sequence[jax.Device] | None = None,
 ) -> Iterator[tuple[int, np.ndarray, float]]:
@@ -161,7 +161,7 @@ def iter_match_scenes(
     ------
     (int, numpy.ndarray float32 (H, W), float)
         The pair's index in ``pairs``, its disparity map (equal to
-        ``sswjax.match(left, right, ndisp, params, buckets=buckets)``) and its share of the
+        ``sswjax.match(left, right, ndisp, params=params, buckets=buckets)``) and its share of the
         step's wall time in seconds: the step's time (conversion, padding, transfers, the
         sharded call, compilation on a bucket's first step) divided by the number of pairs of
         the step (copies not counted). A step's maps are yielded together when it is done.
@@ -169,7 +169,7 @@ def iter_match_scenes(
     if len(pairs) != len(ndisps):
         raise ValueError(f"got {len(pairs)} pairs but {len(ndisps)} ndisp values")
     params = Params() if params is None else check_params(params)
-    mesh = device_mesh(devices)
+    mesh = device_mesh(devices=devices)
     groups: dict[tuple[int, ...], list[int]] = {}
     for index, ((left, right), ndisp) in enumerate(zip(pairs, ndisps)):
         left, _ = checked_pair(left, right, ndisp, params)
@@ -195,28 +195,28 @@ def iter_match_scenes(
 def match_scenes(
     pairs: Sequence[tuple[np.ndarray, np.ndarray]],
     ndisps: Sequence[int],
-    params: Params | None = None,
     *,
+    params: Params | None = None,
     buckets: ShapeBuckets = ShapeBuckets(),
     devices: Sequence[jax.Device] | None = None,
 ) -> list[np.ndarray]:
     """Disparity maps of pairs of different sizes, in the order of ``pairs``.
 
     The maps of :func:`iter_match_scenes` (same parameters), each float32 ``(H, W)`` of its
-    pair and equal to ``sswjax.match(left, right, ndisp, params, buckets=buckets)``.
+    pair and equal to ``sswjax.match(left, right, ndisp, params=params, buckets=buckets)``.
 
     Examples
     --------
     >>> rng = np.random.default_rng(0)
     >>> rights = [rng.random((h, w, 3), dtype=np.float32) for h, w in ((24, 40), (20, 44))]
     >>> pairs = [(np.roll(r, 2, axis=1), r) for r in rights]
-    >>> maps = match_scenes(pairs, [8, 6], Params().replace(n_segments=8),
+    >>> maps = match_scenes(pairs, [8, 6], params=Params().replace(n_segments=8),
     ...                     buckets=ShapeBuckets(size_step=32, ndisp_step=8))
     >>> [m.shape for m in maps]
     [(24, 40), (20, 44)]
     """
     maps: list[np.ndarray | None] = [None] * len(pairs)
-    done = iter_match_scenes(pairs, ndisps, params, buckets=buckets, devices=devices)
+    done = iter_match_scenes(pairs, ndisps, params=params, buckets=buckets, devices=devices)
     for index, disparity, _ in done:
         maps[index] = disparity
     return maps

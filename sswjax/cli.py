@@ -28,10 +28,25 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"sswjax: error: {message}\n")
 
 
-def _params(path):
-    from sswjax.params import Params, load_params
+def _params(args):
+    """The parameters a command asked for: ``--params FILE``, else ``--preset NAME``, else the
+    defaults."""
+    from sswjax.params import Params, load_params, preset
 
-    return Params() if path is None else load_params(path)
+    if args.params is not None:
+        return load_params(args.params)
+    return Params() if args.preset is None else preset(args.preset)
+
+
+def _add_parameter_options(parser, what: str) -> None:
+    """``--preset NAME`` or ``--params FILE`` (not both), help from the registry."""
+    from sswjax.registry import preset_summaries
+
+    group = parser.add_mutually_exclusive_group()
+    presets = "; ".join(f"{name}: {summary}" for name, summary in preset_summaries().items())
+    group.add_argument("--preset", choices=list(preset_summaries()),
+                       help=f"{what} parameters by name (default: the built-in defaults). {presets}")
+    group.add_argument("--params", type=Path, help=f"{what} parameters from a JSON file")
 
 
 def _write_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None, ndisp: int) -> None:
@@ -60,10 +75,10 @@ def cmd_match(args) -> int:
     from sswjax.data.io import read_image
 
     _check_output_dir(args.output, args.png)
-    params = _params(args.params)
+    params = _params(args)
     left, right = read_image(args.left), read_image(args.right)
     start = time.perf_counter()
-    disparity = sswjax.match(left, right, args.ndisp, params)
+    disparity = sswjax.match(left, right, args.ndisp, params=params)
     seconds = time.perf_counter() - start
     _write_outputs(disparity, args.output, args.png, args.ndisp)
     print(f"wrote {args.output} ({disparity.shape[1]}x{disparity.shape[0]}, {seconds:.2f} s)")
@@ -83,9 +98,9 @@ def cmd_demo(args) -> int:
     out = args.output
     out.mkdir(parents=True, exist_ok=True)
     left, right, ground_truth = skimage.data.stereo_motorcycle()
-    params = _params(args.params)
+    params = _params(args)
     start = time.perf_counter()
-    disparity = sswjax.match(left, right, DEMO_NDISP, params)
+    disparity = sswjax.match(left, right, DEMO_NDISP, params=params)
     seconds = time.perf_counter() - start
     _write_outputs(disparity, out / "disp0SSW.pfm", out / "disp0SSW.png", DEMO_NDISP)
     ground_truth = np.where(np.isfinite(ground_truth), ground_truth, np.inf).astype(np.float32)
@@ -130,7 +145,7 @@ def _saved_scene_result(folder: Path, tag: str, scene):
     be used (the scene is then recomputed).
     """
     from sswjax.evaluation.runner import evaluate_scene
-    from sswjax.data.io import InputError, read_pfm
+    from sswjax.data.io import InputError, first_line, read_pfm
 
     pfm, time_file = folder / f"disp0{tag}.pfm", folder / f"time{tag}.txt"
     if not (pfm.is_file() and time_file.is_file()):
@@ -139,7 +154,7 @@ def _saved_scene_result(folder: Path, tag: str, scene):
         disparity = read_pfm(pfm)
         seconds = float(time_file.read_text(encoding="ascii").strip())
     except (InputError, OSError, UnicodeDecodeError, ValueError) as error:
-        return None, f"saved result unusable ({str(error).splitlines()[0]}), recomputing"
+        return None, f"saved result unusable ({first_line(error)}), recomputing"
     expected = scene.left.shape[:2]
     if disparity.shape != expected:
         return None, (f"saved disparity has shape {disparity.shape}, the scene {expected}, "
@@ -178,8 +193,8 @@ def cmd_evaluate(args) -> int:
         write_metrics_csv,
     )
     from sswjax.data.io import atomic_output
-    from sswjax.evaluation.methods import make_method, submission_name
     from sswjax.api import ShapeBuckets
+    from sswjax.evaluation.methods import make_method, submission_name
 
     if args.resume and args.output is None:
         raise ValueError("--resume needs -o/--output: the folder of the run to continue")
@@ -187,8 +202,8 @@ def cmd_evaluate(args) -> int:
     if not methods:
         raise ValueError(f"no method given in --methods {args.methods!r}")
     buckets = ShapeBuckets() if args.bucket else None
-    runners = {name: make_method(name, _params(args.params), buckets=buckets) for name in methods}
-    root = find_data_root(args.data)
+    runners = {name: make_method(name, params=_params(args), buckets=buckets) for name in methods}
+    root = find_data_root(data=args.data)
     layout = detect_layout(root, split=args.split)
     scoring = SCORINGS[layout.scoring]
     scenes = load_scenes(root, layout=layout, split=args.split, scenes=args.scenes, ndisp=args.ndisp)
@@ -271,6 +286,14 @@ def cmd_download(args) -> int:
     return 0
 
 
+def _methods_help() -> str:
+    """``--methods`` help from the registry: every method name with its one-line summary."""
+    from sswjax.registry import method_summaries
+
+    listed = "; ".join(f"{name}: {summary}" for name, summary in method_summaries().items())
+    return f"comma-separated method names (default ssw). {listed}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
@@ -285,12 +308,12 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--ndisp", type=int, required=True, help="disparities searched: 0..N-1")
     match.add_argument("-o", "--output", type=Path, required=True, help="output PFM file")
     match.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
-    match.add_argument("--params", type=Path, help="parameters JSON (default: built-in)")
+    _add_parameter_options(match, "the")
     match.set_defaults(run=cmd_match)
 
     demo = commands.add_parser("demo", help="run on scikit-image's Middlebury Motorcycle pair")
     demo.add_argument("-o", "--output", type=Path, default=Path("sswjax-demo"), help="output folder")
-    demo.add_argument("--params", type=Path, help="parameters JSON (default: built-in)")
+    _add_parameter_options(demo, "the")
     demo.set_defaults(run=cmd_demo)
 
     evaluate = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
@@ -302,10 +325,8 @@ def build_parser() -> argparse.ArgumentParser:
                           help="disparities searched in every scene, 0..N-1 (default: calib.txt "
                                "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2)")
     evaluate.add_argument("--scenes", nargs="+", help="only these scenes")
-    evaluate.add_argument("--methods", default="ssw",
-                          help="comma-separated: ssw, bf, gf, igf, mf, box, sgbm, ablations "
-                               "ssw-noseg, ssw-norefine, ssw-nolr, ssw-guide, ssw-tad, ssw-gm, ssw-census")
-    evaluate.add_argument("--params", type=Path, help="base parameters JSON (default: built-in)")
+    evaluate.add_argument("--methods", default="ssw", help=_methods_help())
+    _add_parameter_options(evaluate, "the base")
     evaluate.add_argument("-o", "--output", type=Path,
                           help="folder for disparities (MiddEval3 layout), results.md, metrics.csv")
     evaluate.add_argument("--figure", action="store_true",
@@ -344,7 +365,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, TypeError, OSError) as error:
         if args.debug:
             raise
-        message = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        from sswjax.data.io import first_line
+
+        message = first_line(error)
         print(f"sswjax: error: {message}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt as interrupt:

@@ -20,7 +20,7 @@ def default_cache_dir() -> Path:
     return base / "sswjax" / "xla"
 
 
-def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path | None:
+def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path | None:
     """Turn on JAX's persistent compilation cache in ``path`` (default :func:`default_cache_dir`).
 
     Programs that took at least 0.5 s to compile are stored. This sets process-wide JAX

@@ -21,8 +21,9 @@ from typing import Any, NamedTuple
 
 import jax
 
-WINDOW_SELECTIONS = ("guide", "slice")
-AGGREGATIONS = ("ssw", "box", "bf", "gf", "igf", "mf")
+from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PRESETS
+from sswjax.stages.aggregation import WINDOW_SELECTIONS
+from sswjax.stages.sgm import PATH_COUNTS
 
 
 class StaticParams(NamedTuple):
@@ -41,9 +42,8 @@ class StaticParams(NamedTuple):
     aggregation_iterations : int
         Number of side-window filtering passes over the cost volume.
     aggregation : str
-        ``"ssw"`` (segment-side-window, the method) or a baseline aggregator that replaces it,
-        everything else unchanged: ``"box"``, ``"bf"`` (bilateral), ``"gf"`` (guided filter),
-        ``"igf"`` (iterated guided filter), ``"mf"`` (median); see :mod:`sswjax.stages.baselines`.
+        A key of :data:`sswjax.registry.AGGREGATORS`: ``"ssw"`` (segment-side-window, the
+        method) or a baseline aggregator that replaces it, everything else unchanged.
     window_selection : str
         ``"guide"``: each pixel's side window is chosen on the left image and shared by all
         disparities; ``"slice"``: chosen independently on every cost slice (Yin et al. 2019).
@@ -63,6 +63,15 @@ class StaticParams(NamedTuple):
         K > 0 (default 4): disparities K at a time with a running minimum, memory for about
         ``3 K`` slices; 0: the whole cost volume at once. Same result either way; K = 4 was
         fastest on XLA CPU (2x faster than the whole volume: the blocks stay in cache).
+    optimizer : str
+        A key of :data:`sswjax.registry.OPTIMIZERS`: ``"none"`` (winner-takes-all on the
+        aggregated cost, the paper) or ``"sgm"`` (semi-global optimisation of the aggregated
+        volume before the selection, :mod:`sswjax.stages.sgm`).
+    sgm_paths : int
+        4 or 8 paths of the semi-global optimisation.
+    fill : str
+        A key of :data:`sswjax.registry.FILLS`: how the pixels the left-right check rejects
+        are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first).
     """
 
     census_height: int = 7
@@ -79,6 +88,9 @@ class StaticParams(NamedTuple):
     refine_radius: int = 2
     refine_iterations: int = 2
     disparity_chunk: int = 4
+    optimizer: str = "none"
+    sgm_paths: int = 8
+    fill: str = "background"
 
 
 class DynamicParams(NamedTuple):
@@ -102,6 +114,17 @@ class DynamicParams(NamedTuple):
         m of Eq. (6).
     lr_tolerance : float
         Largest left/right disagreement, in pixels, that the consistency check accepts.
+    sgm_p1, sgm_p2 : float
+        Semi-global penalties for a disparity change of one and of more, in the units of the
+        aggregated cost (``optimizer="sgm"`` only).
+    sgm_sigma : float
+        Guide intensity change that halves P2 (:func:`sswjax.stages.sgm.path_penalties`).
+    sgm_segment_factor : float, in [0, 1]
+        Factor of both penalties across superpixel boundaries (1: no effect).
+    plane_min_support : float, in [0, 1]
+        Share of a superpixel's pixels that must be valid inliers for its plane to fill it.
+    plane_inlier_scale : float
+        Residual (pixels) up to which a pixel keeps full weight in the robust plane fit.
     """
 
     tad_weight: Any = 0.05000000074505806
@@ -112,6 +135,12 @@ class DynamicParams(NamedTuple):
     segment_weight: Any = 0.5996789336204529
     slic_compactness: Any = 10.0
     lr_tolerance: Any = 0.0
+    sgm_p1: Any = 0.05
+    sgm_p2: Any = 0.4
+    sgm_sigma: Any = 0.05
+    sgm_segment_factor: Any = 1.0
+    plane_min_support: Any = 0.25
+    plane_inlier_scale: Any = 1.0
 
 
 @jax.tree_util.register_dataclass
@@ -168,7 +197,11 @@ _INT_FIELDS = {
     "disparity_chunk": (0, 100_000),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
-_POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness")
+_CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
+                  "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "fill": FILLS}
+_UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support")
+_POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",
+                    "plane_inlier_scale")
 
 
 def _check_value(name: str, value) -> Any:
@@ -186,13 +219,10 @@ def _check_value(name: str, value) -> Any:
         if not isinstance(value, bool):
             raise ValueError(f"parameter {name} must be true or false, got {value!r}")
         return value
-    if name == "aggregation":
-        if value not in AGGREGATIONS:
-            raise ValueError(f"parameter aggregation must be one of {AGGREGATIONS}, got {value!r}")
-        return value
-    if name == "window_selection":
-        if value not in WINDOW_SELECTIONS:
-            raise ValueError(f"parameter window_selection must be one of {WINDOW_SELECTIONS}, got {value!r}")
+    if name in _CHOICE_FIELDS:
+        choices = tuple(_CHOICE_FIELDS[name])
+        if not isinstance(value, type(choices[0])) or isinstance(value, bool) or value not in choices:
+            raise ValueError(f"parameter {name} must be one of {choices}, got {value!r}")
         return value
     # dynamic: finite, non-negative reals; truncations and compactness strictly positive
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -201,6 +231,8 @@ def _check_value(name: str, value) -> Any:
     if not math.isfinite(value) or value < 0 or (name in _POSITIVE_FIELDS and value == 0):
         bound = "> 0" if name in _POSITIVE_FIELDS else ">= 0"
         raise ValueError(f"parameter {name} must be a finite number {bound}, got {value}")
+    if name in _UNIT_FIELDS and value > 1:
+        raise ValueError(f"parameter {name} must be in [0, 1], got {value}")
     return value
 
 
@@ -224,7 +256,7 @@ def check_params(params) -> Params:
             f"params must be a sswjax.Params (see sswjax.load_params), got {type(params).__name__}"
         )
     for name, value in params.static._asdict().items():
-        if name in _INT_FIELDS or name in _BOOL_FIELDS or name in ("aggregation", "window_selection"):
+        if name in _INT_FIELDS or name in _BOOL_FIELDS or name in _CHOICE_FIELDS:
             _check_value(name, value)
     for name, value in params.dynamic._asdict().items():
         if isinstance(value, jax.core.Tracer):
@@ -263,6 +295,20 @@ def params_from_dict(data: Mapping) -> Params:
         else:
             raise ValueError(f"unknown parameter {key!r}")
     return Params().replace(**{name: _check_value(name, value) for name, value in flat.items()})
+
+
+def preset(name: str) -> Params:
+    """The parameters of a named preset of :data:`sswjax.registry.PRESETS`.
+
+    Examples
+    --------
+    >>> from sswjax import preset
+    >>> preset("accurate").static.optimizer
+    'sgm'
+    """
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return Params().replace(**PRESETS[name].changes)
 
 
 def load_params(path: str | os.PathLike) -> Params:

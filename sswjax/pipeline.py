@@ -13,16 +13,17 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
-from sswjax.stages.aggregation import aggregate_cost
+from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS
+from sswjax.stages.aggregation import SegmentTerm
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.stages.filters import side_window_median_filter
 from sswjax.params import Params
-from sswjax.stages.refinement import fill_invalid, left_right_consistency
+from sswjax.stages.refinement import left_right_consistency
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
 
 
-STAGES = ("cost", "superpixels", "aggregation", "selection", "refinement")
+STAGES = ("cost", "superpixels", "aggregation", "optimization", "selection", "refinement")
 """Named scopes (``jax.named_scope``) of the stages in the compiled graph: profiler traces
 attribute each operation to one of them (``benchmarks/speed.py``)."""
 
@@ -51,7 +52,10 @@ def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
     (int32 (H, W), int)
     """
     static = params.static
-    if static.n_segments == 0 or static.aggregation != "ssw":
+    used = (AGGREGATORS[static.aggregation].uses_segments
+            or OPTIMIZERS[static.optimizer].uses_segments
+            or (static.lr_check and FILLS[static.fill].uses_segments))
+    if static.n_segments == 0 or not used:
         return jnp.zeros(left.shape[:2], jnp.int32), 0
     height, width = left.shape[:2]
     ny, nx = slic_grid_shape(height, width, static.n_segments)
@@ -91,17 +95,15 @@ def _aggregate_slices(
             tad_truncation=dynamic.tad_truncation,
             gradient_truncation=dynamic.gradient_truncation,
         )
+    aggregator = AGGREGATORS[static.aggregation]
     with jax.named_scope(STAGES[2]):
-        return aggregate_cost(
+        return aggregator.fn(
             cost,
             left,
-            radius=static.aggregation_radius,
+            radius=static.aggregation_radius if aggregator.radius is None else aggregator.radius,
             iterations=static.aggregation_iterations,
             window_selection=static.window_selection,
-            method=static.aggregation,
-            labels=labels,
-            num_segments=num_segments,
-            segment_weight=dynamic.segment_weight,
+            segments=SegmentTerm(labels, num_segments, dynamic.segment_weight),
         )
 
 
@@ -136,22 +138,23 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
 
 
-def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
+def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0) -> jax.Array:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
     static = params.static
-    with jax.named_scope(STAGES[3]):
+    with jax.named_scope(STAGES[4]):
         if static.subpixel:
             disparity = parabola_refine(
                 winners.disparity, winners.before, winners.cost, winners.after, ndisp=ndisp
             )
         else:
             disparity = winners.disparity.astype(jnp.float32)
-    with jax.named_scope(STAGES[4]):
+    with jax.named_scope(STAGES[5]):
         if static.lr_check:
             valid = left_right_consistency(
                 winners.disparity, winners.right_disparity, tolerance=params.dynamic.lr_tolerance
             )
-            disparity = fill_invalid(disparity, valid, radius=static.fill_radius)
+            disparity = FILLS[static.fill].fn(disparity, valid, labels=labels,
+                                              num_segments=num_segments, params=params)
         if static.refine_radius > 0 and static.refine_iterations > 0:
             disparity = side_window_median_filter(
                 disparity, radius=static.refine_radius, iterations=static.refine_iterations
@@ -160,7 +163,7 @@ def _refine(winners: Winners, params: Params, ndisp) -> jax.Array:
 
 
 def _fold(state: Winners, slices, first, limit) -> Winners:
-    with jax.named_scope(STAGES[3]):
+    with jax.named_scope(STAGES[4]):
         return fold_winners(state, slices, first, limit=limit)
 
 
@@ -188,6 +191,23 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     ndisp = cost.shape[0]
     winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
     return _refine(winners, params, ndisp)
+
+
+_OUT_OF_RANGE_COST = 1e4
+
+
+def _aggregated_volume(features, left, labels, num_segments, ndisp, params) -> jax.Array:
+    """The whole aggregated volume float32 (ndisp, H, W), built ``disparity_chunk`` slices at
+    a time (a ``lax.scan`` whose outputs are the blocks) or at once when it is 0."""
+    chunk = params.static.disparity_chunk
+    if chunk == 0 or chunk >= ndisp:
+        return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
+
+    def step(carry, first):
+        return carry, _aggregate_slices(features, left, labels, num_segments, first, chunk, params)
+
+    _, blocks = jax.lax.scan(step, None, jnp.arange(0, ndisp, chunk))
+    return blocks.reshape((-1, *blocks.shape[2:]))[:ndisp]
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp",))
@@ -223,10 +243,21 @@ def ssw_disparity(
     limit = ndisp if valid_ndisp is None else valid_ndisp
     features, labels, num_segments = _features(left, right, params)
     chunk = params.static.disparity_chunk
+    optimizer = OPTIMIZERS[params.static.optimizer]
+    if optimizer.fn is not None:
+        cost = _aggregated_volume(features, left, labels, num_segments, ndisp, params)
+        # Disparities beyond the traced range take a high finite cost: the paths must not pass
+        # through them, and +inf would turn the recursion's differences into NaN.
+        cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost, _OUT_OF_RANGE_COST)
+        with jax.named_scope(STAGES[3]):
+            cost = optimizer.fn(cost, left, labels=labels if num_segments else None,
+                                params=params)
+        winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
+        return _refine(winners, params, limit, labels, num_segments)
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
         winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
-        return _refine(winners, params, limit)
+        return _refine(winners, params, limit, labels, num_segments)
 
     # Each step aggregates a block of K slices and folds the block of the previous step, which
     # the loop carries: every slice is computed once, and the fold reads a materialised block
@@ -251,4 +282,4 @@ def ssw_disparity(
     start = (no_winners((height, width)), empty, inf_plane)
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
-    return _refine(winners, params, limit)
+    return _refine(winners, params, limit, labels, num_segments)

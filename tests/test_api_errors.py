@@ -30,11 +30,11 @@ def test_api_rejects_bad_params_and_empty_images(texture):
         (Params().replace(tad_weight=np.ones(2)), "parameter tad_weight must be a scalar, got shape (2,)"),
     ]:
         with pytest.raises(ValueError) as info:
-            sswjax.match(left, left, NDISP, params)
+            sswjax.match(left, left, NDISP, params=params)
         assert str(info.value) == message
     message = r"^params must be a sswjax.Params \(see sswjax.load_params\), got dict$"
     with pytest.raises(TypeError, match=message):
-        sswjax.match(left, left, NDISP, {"tad_truncation": 0.1})
+        sswjax.match(left, left, NDISP, params={"tad_truncation": 0.1})
     with pytest.raises(ValueError, match=r"^left image is empty, got shape \(24, 0, 1\)$"):
         sswjax.match(np.zeros((24, 0), np.uint8), left, NDISP)
     with pytest.raises(ValueError, match=r"^ndisp must be an integer, got 8.0$"):

@@ -24,9 +24,9 @@ def _batch(size=3):
 
 def test_batch_equals_pairs_one_by_one():
     lefts, rights = _batch()
-    batched = match_batch(lefts, rights, 10, PARAMS)
+    batched = match_batch(lefts, rights, 10, params=PARAMS)
     for i in range(len(lefts)):
-        np.testing.assert_allclose(batched[i], sswjax.match(lefts[i], rights[i], 10, PARAMS), atol=1e-5)
+        np.testing.assert_allclose(batched[i], sswjax.match(lefts[i], rights[i], 10, params=PARAMS), atol=1e-5)
 
 
 SCRIPT = """
@@ -35,7 +35,7 @@ from sswjax.batching import match_batch
 rng = np.random.default_rng(11)
 rights = rng.random((3, 28, 48, 3), dtype=np.float32)
 lefts = np.stack([np.roll(r, 2 + i, axis=1) for i, r in enumerate(rights)])
-out = match_batch(lefts, rights, 10, sswjax.Params().replace(n_segments=16))
+out = match_batch(lefts, rights, 10, params=sswjax.Params().replace(n_segments=16))
 np.save({path!r}, out)
 print(len(jax.devices()))
 """
@@ -83,7 +83,7 @@ def _run_scenes(devices):
 
     batching._batched = spy
     try:
-        done = list(iter_match_scenes(pairs, ndisps, LIGHT, buckets=BUCKETS, devices=devices))
+        done = list(iter_match_scenes(pairs, ndisps, params=LIGHT, buckets=BUCKETS, devices=devices))
     finally:
         batching._batched = inner
     maps = [None] * len(pairs)
@@ -104,7 +104,7 @@ def test_scenes_equal_bucketed_match_one_by_one(one_device):
     assert calls == [[1, 1]] * 5
     pairs, ndisps = _scenes()
     for (left, right), ndisp, disparity, (_, _, _, shift) in zip(pairs, ndisps, maps, SCENES):
-        expected = sswjax.match(left, right, ndisp, LIGHT, buckets=BUCKETS)
+        expected = sswjax.match(left, right, ndisp, params=LIGHT, buckets=BUCKETS)
         assert disparity.shape == left.shape[:2] and disparity.dtype == np.float32
         np.testing.assert_allclose(disparity, expected, rtol=0, atol=1e-5)
         assert disparity.max() <= ndisp - 1
@@ -120,9 +120,9 @@ def test_scenes_check_every_pair_before_running(monkeypatch):
     monkeypatch.setattr(batching, "_batched", never)
     pairs, ndisps = _scenes()
     with pytest.raises(ValueError, match="ndisp must be in"):
-        match_scenes(pairs, ndisps[:-1] + [60], LIGHT, buckets=BUCKETS)
+        match_scenes(pairs, ndisps[:-1] + [60], params=LIGHT, buckets=BUCKETS)
     with pytest.raises(ValueError, match="5 pairs but 4"):
-        match_scenes(pairs, ndisps[:-1], LIGHT, buckets=BUCKETS)
+        match_scenes(pairs, ndisps[:-1], params=LIGHT, buckets=BUCKETS)
 
 
 SCENES_SCRIPT = """

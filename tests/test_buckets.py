@@ -41,7 +41,7 @@ def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
     before = ssw_disparity._cache_size()
     for (height, width), ndisp in (((40, 60), 12), ((50, 64), 9), ((64, 50), 16)):
         left, right = _pair(height, width, 5, height)
-        disparity = sswjax.match(left, right, ndisp, params, buckets=BUCKETS)
+        disparity = sswjax.match(left, right, ndisp, params=params, buckets=BUCKETS)
         assert disparity.shape == (height, width)
         assert disparity.max() <= ndisp - 1
         assert np.median(disparity[:, 12:]) == pytest.approx(5, abs=0.01)
@@ -51,7 +51,7 @@ def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
 def test_padded_disparities_are_never_chosen():
     left, right = _pair(40, 60, 2, 1)
     params = sswjax.Params().replace(n_segments=20)
-    disparity = sswjax.match(left, right, 3, params, buckets=BUCKETS)  # volume of 16, range 3
+    disparity = sswjax.match(left, right, 3, params=params, buckets=BUCKETS)  # volume of 16, range 3
     assert disparity.max() <= 2
 
 
@@ -61,7 +61,7 @@ def test_second_process_reuses_the_compilation_cache(tmp_path):
         "from sswjax.compilation import enable_compilation_cache\n"
         "enable_compilation_cache()\n"
         "r = np.random.default_rng(0).random((24, 40, 3)).astype(np.float32)\n"
-        "sswjax.match(np.roll(r, 2, axis=1), r, 6, sswjax.Params().replace(n_segments=8))\n"
+        "sswjax.match(np.roll(r, 2, axis=1), r, 6, params=sswjax.Params().replace(n_segments=8))\n"
     )
     env = dict(os.environ, SSWJAX_CACHE_DIR=str(tmp_path / "cache"))
     subprocess.run([sys.executable, "-c", script], env=env, check=True)

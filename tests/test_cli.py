@@ -152,3 +152,29 @@ def test_cli_16bit_colour_png(small_pair, tmp_path):
     np.testing.assert_array_equal(read_image(tmp_path / "rgba64.png"), rgba[..., :3])
     disparity = _match_cli(tmp_path, tmp_path, "left48.png", "right48.png")
     assert np.median(disparity[:, 12:]) == pytest.approx(small_pair.shift, abs=0.05)
+
+
+@pytest.mark.parametrize("preset", sorted(sswjax.PRESETS))
+def test_match_preset(pair, tmp_path, preset):
+    out = tmp_path / "d.pfm"
+    code = main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", str(NDISP),
+                 "-o", str(out), "--preset", preset])
+    assert code == 0
+    expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
+                            params=sswjax.preset(preset))
+    np.testing.assert_array_equal(read_pfm(out), expected)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--preset", "nope"], "argument --preset: invalid choice: 'nope'"),
+    (["--preset", "paper", "--params", "p.json"], "argument --params: not allowed with argument --preset"),
+])
+def test_match_bad_preset_one_line_exit_2(pair, tmp_path, capsys, args, message):
+    out = tmp_path / "d.pfm"
+    with pytest.raises(SystemExit) as exit_:
+        main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", str(NDISP),
+              "-o", str(out), *args])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err
+    assert not out.exists()

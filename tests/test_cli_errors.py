@@ -166,7 +166,7 @@ def test_debug_shows_the_traceback(files, tmp_path):
     debug = subprocess.run(CLI + ["--debug"] + argv, capture_output=True, text=True, timeout=120)
     assert debug.returncode == 1
     assert debug.stderr.startswith("Traceback (most recent call last):")
-    assert "sswjax.data.io.InputError: image not found" in debug.stderr
+    assert "sswjax.data.files.InputError: image not found" in debug.stderr
 
 
 # ----------------------------------------------------------------------------- sswjax evaluate

@@ -120,7 +120,7 @@ def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, 
 @pytest.fixture()
 def fake_method(monkeypatch, middeval3):
     """A method "fake" without JAX: disparity 3 everywhere; counts its calls per scene width."""
-    from sswjax.evaluation import methods
+    from sswjax import registry
 
     calls = []
 
@@ -130,7 +130,7 @@ def fake_method(monkeypatch, middeval3):
             raise KeyboardInterrupt
         return np.full(left.shape[:2], middeval3.shift, np.float32)
 
-    monkeypatch.setitem(methods.PEERS, "fake", fake)
+    monkeypatch.setitem(registry.PEERS, "fake", registry.Peer(fake, "a stand-in without JAX"))
     fake.calls = calls
     return fake
 

@@ -77,7 +77,7 @@ def test_pipeline_invariants_on_random_images(shape, kind, dtype, seed, weights,
         tad_truncation=truncations[0], gradient_truncation=truncations[1],
         segment_weight=segment_weight, lr_tolerance=lr_tolerance,
     )
-    disparity = sswjax.match(left, right, NDISP, params)
+    disparity = sswjax.match(left, right, NDISP, params=params)
     assert isinstance(disparity, np.ndarray)
     assert disparity.shape == shape[:2] and disparity.dtype == np.float32
     assert np.isfinite(disparity).all()

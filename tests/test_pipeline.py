@@ -88,31 +88,31 @@ def test_match_accepts_uint8_uint16_float_and_rgba(pair, integer_params):
     left8, right8 = (np.round(im * 255).astype(np.uint8) for im in (left, right))
     left16, right16 = (np.round(im * 65535).astype(np.uint16) for im in (left, right))
 
-    from_uint8 = sswjax.match(left8, right8, NDISP, integer_params)
+    from_uint8 = sswjax.match(left8, right8, NDISP, params=integer_params)
     check_output(from_uint8)
-    expected8 = sswjax.match(left8.astype(np.float32) / 255, right8.astype(np.float32) / 255, NDISP, integer_params)
+    expected8 = sswjax.match(left8.astype(np.float32) / 255, right8.astype(np.float32) / 255, NDISP, params=integer_params)
     np.testing.assert_array_equal(from_uint8, expected8)
 
-    from_uint16 = sswjax.match(left16, right16, NDISP, integer_params)
+    from_uint16 = sswjax.match(left16, right16, NDISP, params=integer_params)
     check_output(from_uint16)
     expected16 = sswjax.match(
-        left16.astype(np.float32) / 65535, right16.astype(np.float32) / 65535, NDISP, integer_params
+        left16.astype(np.float32) / 65535, right16.astype(np.float32) / 65535, NDISP, params=integer_params
     )
     np.testing.assert_array_equal(from_uint16, expected16)
     np.testing.assert_array_equal(from_uint16[:, SHIFT + MARGIN :], SHIFT)
 
-    from_float64 = sswjax.match(left.astype(np.float64), right.astype(np.float64), NDISP, integer_params)
+    from_float64 = sswjax.match(left.astype(np.float64), right.astype(np.float64), NDISP, params=integer_params)
     check_output(from_float64)
     np.testing.assert_array_equal(from_float64[:, SHIFT + MARGIN :], SHIFT)
 
     # RGBA: the alpha channel is dropped, whatever it holds
     rng = np.random.default_rng(7)
     alpha = rng.integers(0, 256, size=(H, W, 1), dtype=np.uint8)
-    rgba = sswjax.match(np.concatenate([left8, alpha], -1), np.concatenate([right8, alpha[::-1]], -1), NDISP, integer_params)
+    rgba = sswjax.match(np.concatenate([left8, alpha], -1), np.concatenate([right8, alpha[::-1]], -1), NDISP, params=integer_params)
     np.testing.assert_array_equal(rgba, from_uint8)
 
     # a NumPy integer ndisp is fine
-    np.testing.assert_array_equal(sswjax.match(left8, right8, np.int64(NDISP), integer_params), from_uint8)
+    np.testing.assert_array_equal(sswjax.match(left8, right8, np.int64(NDISP), params=integer_params), from_uint8)
 
 
 def test_prepare_pair_conversions():
@@ -149,14 +149,14 @@ def test_match_gray_and_mixed_inputs(pair, integer_params):
     gray_l = np.asarray(rgb_to_gray(jnp.asarray(left)))
     gray_r = np.asarray(rgb_to_gray(jnp.asarray(right)))
 
-    d_gray = sswjax.match(gray_l, gray_r, NDISP, integer_params)
+    d_gray = sswjax.match(gray_l, gray_r, NDISP, params=integer_params)
     check_output(d_gray)
     np.testing.assert_array_equal(d_gray[:, SHIFT + MARGIN :], SHIFT)
     # (H, W) and (H, W, 1) are the same input
-    np.testing.assert_array_equal(sswjax.match(gray_l[..., None], gray_r[..., None], NDISP, integer_params), d_gray)
+    np.testing.assert_array_equal(sswjax.match(gray_l[..., None], gray_r[..., None], NDISP, params=integer_params), d_gray)
     # gray + colour: both used as gray
-    np.testing.assert_array_equal(sswjax.match(gray_l, right, NDISP, integer_params), d_gray)
-    np.testing.assert_array_equal(sswjax.match(left, gray_r[..., None], NDISP, integer_params), d_gray)
+    np.testing.assert_array_equal(sswjax.match(gray_l, right, NDISP, params=integer_params), d_gray)
+    np.testing.assert_array_equal(sswjax.match(left, gray_r[..., None], NDISP, params=integer_params), d_gray)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -248,3 +248,33 @@ def test_motorcycle_error_bound():
     # measured: bad 2.0 = 8.2 %, bad 1.0 = 11.6 %
     assert bad2 <= 0.136, bad2
     assert bad1 <= 0.15, bad1
+
+
+def test_to_float_image():
+    from sswjax.api import to_float_image
+
+    np.testing.assert_array_equal(to_float_image(np.array([[0, 255]], np.uint8))[..., 0], [[0, 1]])
+    out = to_float_image(np.array([[0, 65535]], np.uint16))
+    assert out.dtype == np.float32 and out.shape == (1, 2, 1)
+    np.testing.assert_array_equal(out[..., 0], [[0, 1]])
+    out = to_float_image(np.full((2, 2, 3), 0.25))
+    assert out.dtype == np.float32 and out.shape == (2, 2, 3) and np.all(out == 0.25)
+    rgba = to_float_image(np.zeros((2, 2, 4), np.uint8))
+    assert rgba.shape == (2, 2, 3)
+
+
+def test_to_float_image_errors():
+    from sswjax.api import to_float_image
+
+    with pytest.raises(ValueError, match="got bool"):
+        to_float_image(np.zeros((2, 2), bool))
+    with pytest.raises(ValueError, match="got int32"):
+        to_float_image(np.zeros((2, 2), np.int32))
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        to_float_image(np.array([[0.0, np.nan]]))
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        to_float_image(np.array([[0.0, 1e300]]))  # overflows float32, without a warning
+    with pytest.raises(ValueError, match="left image must be HxW"):
+        to_float_image(np.zeros((2, 2, 2), np.uint8), name="left")
+    with pytest.raises(ValueError, match="HxW"):
+        to_float_image(np.zeros(4, np.uint8))

@@ -103,7 +103,7 @@ def read_calib(path: str | os.PathLike) -> dict[str, str | float]:
     return calib
 
 
-def find_data_root(data: str | os.PathLike | None = None) -> Path:
+def find_data_root(*, data: str | os.PathLike | None = None) -> Path:
     """Locate the MiddEval3 data directory.
 
     Priority: the ``data`` argument, the ``SSWJAX_DATA`` environment variable, then
@@ -122,7 +122,7 @@ def find_data_root(data: str | os.PathLike | None = None) -> Path:
 
     Examples
     --------
-    >>> find_data_root("/data/MiddEval3")
+    >>> find_data_root(data="/data/MiddEval3")
     PosixPath('/data/MiddEval3')
     """
     if data is not None:

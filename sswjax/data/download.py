@@ -7,7 +7,7 @@ and for training ``disp0GT.pfm``, ``mask0nocc.png``), which ``load_middeval3`` r
 Conventions: pooch fetches, checks hashes when known and moves archives into place; ours is
 only what it lacks: resuming (:class:`ResumingDownloader`, with progress bar and size check),
 safe atomic extraction, and one-line errors naming the URL or file, :class:`DownloadError`
-(network, HTTP, size, checksum) or :class:`~sswjax.data.io.InputError` (files, bad archives).
+(network, HTTP, size, checksum) or :class:`~sswjax.data.files.InputError` (files, bad archives).
 :data:`MIDDEVAL3_REGISTRY` maps an archive to ``(size in bytes, "sha256:<hex>")``, each
 ``None`` while unknown (Middlebury publishes no checksums; pooch then gets ``known_hash=None``):
 sizes are checked against it and the server's announcement, zip CRCs always. Downloads go to
@@ -32,7 +32,7 @@ from urllib.request import Request, urlopen
 import pooch
 from tqdm import tqdm
 
-from sswjax.data.io import InputError, atomic_output
+from sswjax.data.files import InputError, atomic_output, reason
 
 __all__ = ["DEFAULT_BASE_URL", "MIDDEVAL3_ARCHIVES", "MIDDEVAL3_REGISTRY", "DownloadError",
            "ResumingDownloader", "download_middeval3", "middeval3_urls"]  # fmt: skip
@@ -52,10 +52,8 @@ class DownloadError(InputError):
 
 
 def _one_line(exc: BaseException | str) -> str:
-    if type(exc) is URLError:  # not its subclass HTTPError, whose text has the status code
-        return _one_line(exc.reason)
-    text = exc if isinstance(exc, str) else getattr(exc, "strerror", None) or str(exc)
-    return (text.strip().splitlines() or [type(exc).__name__])[0]
+    # A URLError's own text wraps its reason; its subclass HTTPError's text has the status code.
+    return reason(exc.reason if type(exc) is URLError else exc)
 
 
 class ResumingDownloader:
@@ -169,12 +167,12 @@ def _extract_zip(archive: Path, dest: Path) -> list[Path]:
     return files
 
 
-def middeval3_urls(resolution: str = "Q", *, base_url: str = DEFAULT_BASE_URL) -> list[str]:
+def middeval3_urls(*, resolution: str = "Q", base_url: str = DEFAULT_BASE_URL) -> list[str]:
     """URLs of the archives of one resolution, ``"Q"``, ``"H"`` or ``"F"`` (else ValueError).
 
     Examples
     --------
-    >>> middeval3_urls("Q", base_url="http://example.org/zip")
+    >>> middeval3_urls(resolution="Q", base_url="http://example.org/zip")
     ['http://example.org/zip/MiddEval3-data-Q.zip', 'http://example.org/zip/MiddEval3-GT0-Q.zip']
     """
     if resolution not in MIDDEVAL3_ARCHIVES:
@@ -218,7 +216,7 @@ def download_middeval3(dest: str | os.PathLike, *, resolution: str = "Q",
     ValueError
         On an unknown resolution.
     """
-    urls = middeval3_urls(resolution, base_url=base_url)
+    urls = middeval3_urls(resolution=resolution, base_url=base_url)
     urls, dest = dict(zip(MIDDEVAL3_ARCHIVES[resolution], urls)), Path(dest)
     registry = {name: MIDDEVAL3_REGISTRY[name][1] for name in urls}
     fetcher = pooch.create(dest, base_url, urls=urls, registry=registry)

@@ -4,7 +4,7 @@ Array conventions
 -----------------
 * Images are ``(H, W)`` (gray) or ``(H, W, 3)`` (RGB) NumPy arrays, row 0 at the top.
   As read from disk they keep their file dtype (``uint8``, ``uint16`` or floating);
-  :func:`to_float_image` turns them into ``float32`` in ``[0, 1]``.
+  :func:`sswjax.api.to_float_image` turns them into ``float32`` in ``[0, 1]``.
 * Disparity maps are ``float32`` ``(H, W)`` arrays in pixels, row 0 at the top;
   ``inf`` marks unknown/invalid pixels. PFM files store rows bottom-to-top; the reader and
   writer flip them so that callers never see that order.
@@ -17,98 +17,27 @@ All writers are atomic: the output either keeps its old content or gets the comp
 
 from __future__ import annotations
 
-import contextlib
 import os
 import struct
-import tempfile
 import warnings
-from collections.abc import Iterator
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
+from sswjax.data.files import InputError, atomic_output, first_line, reason
 
 __all__ = [
     "InputError",
     "atomic_output",
     "disparity_to_rgb",
+    "first_line",
     "read_image",
     "read_pfm",
-    "to_float_image",
     "write_disparity_png",
     "write_pfm",
 ]
-
-
-class InputError(ValueError):
-    """A user file is missing, unreadable, corrupt or truncated (or cannot be written)."""
-
-
-# ----------------------------------------------------------------------------- atomic output
-
-
-def _read_umask() -> int:
-    umask = os.umask(0)  # the only portable way to read it; done once, at import
-    os.umask(umask)
-    return umask
-
-
-# mkstemp creates files as 0o600; outputs get what a plain open(path, "w") would give.
-_FILE_MODE = 0o666 & ~_read_umask()
-
-
-def _reason(exc: BaseException) -> str:
-    """First line of an exception's message, for one-line error reports."""
-    text = getattr(exc, "strerror", None) or str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path`` and move it onto ``path`` on success.
-
-    The temporary file (``.<name>.<random>.tmp`` in the same directory) is removed if the
-    body raises, so an existing ``path`` is left untouched and no debris remains.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Final output file.
-
-    Yields
-    ------
-    pathlib.Path
-        Temporary file to write; it already exists (empty) and may be overwritten.
-
-    Raises
-    ------
-    InputError
-        If the temporary file cannot be created or moved (e.g. missing directory).
-
-    Examples
-    --------
-    >>> with atomic_output("out.txt") as tmp:  # doctest: +SKIP
-    ...     tmp.write_text("hello")
-    """
-    path = Path(path)
-    try:
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {_reason(exc)}") from exc
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.chmod(tmp, _FILE_MODE)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot write {path}: {_reason(exc)}") from exc
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 # ----------------------------------------------------------------------------- images
@@ -116,7 +45,7 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
 
 def _decode_failure(path: Path, exc: BaseException) -> str:
     """A specific one-line reason for an image file that cannot be decoded."""
-    text = _reason(exc)
+    text = reason(exc)
     try:
         if path.is_file() and path.stat().st_size == 0:
             return "the file is empty"
@@ -221,49 +150,6 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
-def to_float_image(image: np.ndarray) -> np.ndarray:
-    """Convert an image to ``float32``, scaling integer images to ``[0, 1]``.
-
-    Parameters
-    ----------
-    image : numpy.ndarray
-        ``(H, W)`` or ``(H, W, 3)``; ``uint8`` (divided by 255), ``uint16`` (divided by
-        65535) or floating (kept as is, must be finite).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``float32`` array of the same shape (a new array).
-
-    Raises
-    ------
-    ValueError
-        On a bad shape or non-finite float values.
-    TypeError
-        On any other dtype (including ``bool``).
-
-    Examples
-    --------
-    >>> to_float_image(np.array([[0, 255]], dtype=np.uint8))
-    array([[0., 1.]], dtype=float32)
-    """
-    image = np.asarray(image)
-    check_rank("image", image, (2, 3))
-    if image.ndim == 3 and image.shape[2] != 3:
-        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {image.shape}")
-    if image.dtype == np.uint8:
-        return image.astype(np.float32) / np.float32(255)
-    if image.dtype == np.uint16:
-        return image.astype(np.float32) / np.float32(65535)
-    if not np.issubdtype(image.dtype, np.floating):
-        raise TypeError(f"image must be uint8, uint16 or floating, got {image.dtype}")
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = image.astype(np.float32)
-    if not np.isfinite(out).all():
-        raise ValueError("image has non-finite values (or values too large for float32)")
-    return out
-
-
 # ----------------------------------------------------------------------------- PFM
 
 
@@ -273,7 +159,7 @@ def _read_bytes(path: Path, what: str) -> bytes:
     try:
         return path.read_bytes()
     except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {_reason(exc)}") from exc
+        raise InputError(f"cannot read {what} {path}: {reason(exc)}") from exc
 
 
 def _pfm_header(data: bytes, path: Path) -> tuple[list[bytes], int]:

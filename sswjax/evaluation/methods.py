@@ -15,35 +15,10 @@ from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
+from sswjax.api import ShapeBuckets, match
 from sswjax.batching import iter_match_scenes
 from sswjax.params import Params
-from sswjax.evaluation.peers import pandora_disparity, sgbm_disparity
-from sswjax.api import ShapeBuckets, match
-
-SSW_VARIANTS: dict[str, dict] = {
-    "ssw": {},
-    "bf": {"aggregation": "bf"},
-    "gf": {"aggregation": "gf"},
-    "igf": {"aggregation": "igf"},
-    "mf": {"aggregation": "mf"},
-    "box": {"aggregation": "box"},
-    "ssw-noseg": {"n_segments": 0},
-    "ssw-norefine": {"refine_radius": 0},
-    "ssw-nolr": {"lr_check": False},
-    "ssw-guide": {"window_selection": "guide"},
-    "ssw-tad": {"tad_weight": 1.0, "gradient_weight": 0.0, "census_weight": 0.0},
-    "ssw-gm": {"tad_weight": 0.0, "gradient_weight": 1.0, "census_weight": 0.0},
-    "ssw-census": {"tad_weight": 0.0, "gradient_weight": 0.0, "census_weight": 1.0},
-}
-"""Method name -> parameter changes applied on top of the user's parameters."""
-
-PEERS: dict[str, Callable[[np.ndarray, np.ndarray, int], np.ndarray]] = {
-    "sgbm": sgbm_disparity,
-    "pandora": pandora_disparity,
-}
-"""Method name -> another project's matcher under our protocol (optional dependencies)."""
-
-METHOD_NAMES = tuple(SSW_VARIANTS) + tuple(PEERS)
+from sswjax.registry import PEERS, method_names, variant_changes
 
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
@@ -52,7 +27,7 @@ Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 class BucketedSSW:
     """An SSW variant on bucketed shapes, a :class:`sswjax.evaluation.BatchedMethod`.
 
-    Called on one pair it is ``sswjax.match(left, right, ndisp, params, buckets=buckets)``;
+    Called on one pair it is ``sswjax.match(left, right, ndisp, params=params, buckets=buckets)``;
     :meth:`match_many` gives the same maps from
     :func:`sswjax.batching.iter_match_scenes`: pairs grouped by bucket, one pair per device
     per call, sharded over ``devices`` (default: all ``jax.devices()``).
@@ -64,19 +39,19 @@ class BucketedSSW:
 
     def __call__(self, left, right, ndisp: int) -> np.ndarray:
         """float32 (H, W) disparity of one pair."""
-        return match(left, right, ndisp, self.params, buckets=self.buckets)
+        return match(left, right, ndisp, params=self.params, buckets=self.buckets)
 
     def match_many(
         self, pairs: Sequence[tuple[np.ndarray, np.ndarray]], ndisps: Sequence[int]
     ) -> Iterator[tuple[int, np.ndarray, float]]:
         """``(index, float32 (H, W) disparity, seconds)`` per pair, a step's pairs at a time;
         ``seconds`` is the step's wall time divided by its number of pairs."""
-        return iter_match_scenes(pairs, ndisps, self.params, buckets=self.buckets,
+        return iter_match_scenes(pairs, ndisps, params=self.params, buckets=self.buckets,
                                  devices=self.devices)
 
 
 def make_method(
-    name: str, params: Params | None = None, *, buckets: ShapeBuckets | None = None,
+    name: str, *, params: Params | None = None, buckets: ShapeBuckets | None = None,
     devices=None,
 ) -> Method:
     """The method called ``name`` as ``(left, right, ndisp) -> disparity``.
@@ -84,7 +59,7 @@ def make_method(
     Parameters
     ----------
     name : str
-        One of :data:`METHOD_NAMES`.
+        One of :func:`sswjax.registry.method_names`.
     params : Params, optional
         Base parameters of the SSW variants (default ``Params()``); ignored by peers.
     buckets : ShapeBuckets, optional
@@ -97,19 +72,19 @@ def make_method(
     Examples
     --------
     >>> method = make_method("gf")
-    >>> sorted(METHOD_NAMES)[:3]
+    >>> sorted(method_names())[:3]
     ['bf', 'box', 'gf']
     """
     if name in PEERS:
-        return PEERS[name]
-    if name not in SSW_VARIANTS:
-        raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHOD_NAMES)}")
-    variant = (Params() if params is None else params).replace(**SSW_VARIANTS[name])
+        return PEERS[name].fn
+    if name not in method_names():
+        raise ValueError(f"unknown method {name!r}; choose from {', '.join(method_names())}")
+    variant = (Params() if params is None else params).replace(**variant_changes(name))
     if buckets is not None:
         return BucketedSSW(variant, buckets, None if devices is None else tuple(devices))
 
     def run(left, right, ndisp):
-        return match(left, right, ndisp, variant, buckets=buckets)
+        return match(left, right, ndisp, params=variant)
 
     return run
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sswjax.stages.color import rgb_to_gray
 from sswjax.stages.refinement import fill_background
 
 
@@ -70,14 +71,11 @@ def sgbm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_siz
     return np.clip(filled, 0, ndisp - 1).astype(np.float32)
 
 
-_BT601 = (0.299, 0.587, 0.114)
-
-
 def _gray_float32(image: np.ndarray) -> np.ndarray:
     """Single-band float32 image (BT.601 luma of colour input, at the input's own scale)."""
     image = np.asarray(image, dtype=np.float32)
     if image.ndim == 3:
-        image = image[..., 0] * _BT601[0] + image[..., 1] * _BT601[1] + image[..., 2] * _BT601[2]
+        image = np.asarray(rgb_to_gray(image))
     return np.ascontiguousarray(image, dtype=np.float32)
 
 

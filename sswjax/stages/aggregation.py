@@ -15,13 +15,16 @@ measured better once the segment term is in (see the README's design notes).
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import jax
-import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_rank
-from sswjax.stages.baselines import BASELINE_AGGREGATORS, BASELINE_RADIUS
 from sswjax.stages.filters import side_window_box_filter
 from sswjax.stages.segments import segment_mean
+
+WINDOW_SELECTIONS = ("slice", "guide")
+"""Where a side window is chosen: on every cost slice (Yin et al.'s S-BOX) or on the guide."""
 
 
 def segment_cost(cost: jax.Array, labels: jax.Array, *, num_segments: int) -> jax.Array:
@@ -42,17 +45,31 @@ def segment_cost(cost: jax.Array, labels: jax.Array, *, num_segments: int) -> ja
     return segment_mean(cost, labels, num_segments=num_segments)
 
 
-def aggregate_cost(
+class SegmentTerm(NamedTuple):
+    """The superpixels of the segment term and its weight.
+
+    Attributes
+    ----------
+    labels : int32 (H, W), values in [0, num_segments)
+    num_segments : int
+        Static count of labels.
+    weight : float or scalar array
+        lambda: the filter sees ``C + lambda * S``.
+    """
+
+    labels: jax.Array
+    num_segments: int
+    weight: Any
+
+
+def segment_side_window_aggregation(
     cost: jax.Array,
     guide: jax.Array,
     *,
     radius: int,
     iterations: int,
     window_selection: str = "slice",
-    method: str = "ssw",
-    labels: jax.Array | None = None,
-    num_segments: int = 0,
-    segment_weight=1.0,
+    segments: SegmentTerm | None = None,
 ) -> jax.Array:
     """Segment-side-window aggregation: ``SWF(C + lambda * S)`` (Eq. 7 as we read it).
 
@@ -65,14 +82,8 @@ def aggregate_cost(
     radius, iterations : int
         Side-window radius and number of filtering passes.
     window_selection : {"guide", "slice"}
-    method : {"ssw", "box", "bf", "gf", "igf", "mf"}
-        ``"ssw"``, or a baseline of :mod:`sswjax.stages.baselines` that replaces the whole step (segment
-        term included) with its own radius (``BASELINE_RADIUS``).
-    labels : int32 (H, W), optional
-        Superpixels; without them (or with ``num_segments=0``) the segment term is off.
-    num_segments : int
-    segment_weight : float or scalar array
-        lambda.
+    segments : SegmentTerm, optional
+        Superpixels and lambda; without them (or with ``num_segments=0``) the term is off.
 
     Returns
     -------
@@ -83,17 +94,13 @@ def aggregate_cost(
     check_rank("guide", guide, 3)
     if guide.shape[:2] != cost.shape[1:]:
         raise ValueError(f"guide size {guide.shape[:2]} differs from cost size {cost.shape[1:]}")
-    if method != "ssw":
-        if method not in BASELINE_AGGREGATORS:
-            raise ValueError(f"unknown aggregation method {method!r}")
-        return BASELINE_AGGREGATORS[method](cost, guide, radius=BASELINE_RADIUS[method])
-    if labels is not None and num_segments > 0:
-        cost = cost + segment_weight * segment_cost(cost, labels, num_segments=num_segments)
-    if window_selection == "guide":
-        guide_channels_first = jnp.moveaxis(guide, -1, 0)
-        return side_window_box_filter(
-            cost, radius=radius, iterations=iterations, guide=guide_channels_first
-        )
-    if window_selection == "slice":
-        return side_window_box_filter(cost, radius=radius, iterations=iterations)
-    raise ValueError(f"window_selection must be 'guide' or 'slice', got {window_selection!r}")
+    if window_selection not in WINDOW_SELECTIONS:
+        raise ValueError(f"window_selection must be one of {WINDOW_SELECTIONS}, "
+                         f"got {window_selection!r}")
+    if segments is not None and segments.num_segments > 0:
+        cost = cost + segments.weight * segment_cost(
+            cost, segments.labels, num_segments=segments.num_segments)
+    return side_window_box_filter(
+        cost, radius=radius, iterations=iterations,
+        guide=guide if window_selection == "guide" else None,
+    )

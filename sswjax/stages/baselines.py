@@ -16,8 +16,8 @@ other numeric options (``eps``, ``sigma_space``, ``sigma_color``) may be traced 
 ``(D, H, W, window)`` tensor is built: box means are separable 1-D window sums, and the
 bilateral filter loops over window offsets, accumulating.
 
-:data:`BASELINE_AGGREGATORS` maps a name to a drop-in replacement of the SSW aggregation step,
-``f(cost, guide, *, radius) -> aggregated cost`` with the other options at their defaults.
+Each is a drop-in replacement of the SSW aggregation step through its entry in
+:data:`sswjax.registry.AGGREGATORS`.
 """
 
 from __future__ import annotations
@@ -31,8 +31,6 @@ from sswjax._checks import check_floating, check_map, check_positive_int, check_
 from sswjax.stages.filters import edge_pad, median_filter
 
 __all__ = [
-    "BASELINE_AGGREGATORS",
-    "BASELINE_RADIUS",
     "bilateral_filter",
     "box_filter",
     "guided_filter",
@@ -413,23 +411,3 @@ def median_cost_filter(x: jax.Array, *, radius: int = 2) -> jax.Array:
     """
     check_map("x", x, radius)
     return median_filter(x.astype(jnp.float32), radius=radius)
-
-
-# ---------------------------------------------------------------------------------------------
-# Drop-in replacements of the SSW aggregation step.
-
-BASELINE_AGGREGATORS: dict[str, Callable[..., jax.Array]] = {
-    "box": lambda cost, guide, *, radius: box_filter(cost, radius=radius),
-    "bf": lambda cost, guide, *, radius: bilateral_filter(cost, guide, radius=radius),
-    "gf": lambda cost, guide, *, radius: guided_filter(cost, guide, radius=radius),
-    "igf": lambda cost, guide, *, radius: iterated_guided_filter(cost, guide, radius=radius),
-    "mf": lambda cost, guide, *, radius: median_cost_filter(cost, radius=radius),
-}
-"""Name -> ``f(cost, guide, *, radius)``: cost float32 (D, H, W), guide float32 (H, W, C) in
-[0, 1]; returns the aggregated float32 (D, H, W) cost. Options other than ``radius`` take their
-defaults; "box" and "mf" ignore the guide.
-"""
-
-BASELINE_RADIUS: dict[str, int] = {"box": 4, "bf": 4, "gf": 9, "igf": 9, "mf": 2}
-"""The radius each baseline runs with in the pipeline: the usual settings of local stereo
-(bilateral window 9, guided filter r 9 as in Hosni et al. 2013, median 5x5, box as SSW's r)."""

@@ -18,7 +18,13 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from sswjax._checks import check_integer, check_map, check_rank
+from sswjax._checks import (
+    check_floating,
+    check_integer,
+    check_map,
+    check_positive_int,
+    check_rank,
+)
 
 # (vertical extent, horizontal extent) of each window, in the order L, R, U, D, NW, NE, SW, SE.
 SIDE_WINDOWS = (
@@ -31,7 +37,6 @@ SIDE_WINDOWS = (
     ("after", "before"),
     ("after", "after"),
 )
-SIDE_WINDOW_NAMES = ("L", "R", "U", "D", "NW", "NE", "SW", "SE")
 SUM_METHODS = ("slices", "cumsum", "reduce_window")
 
 
@@ -109,7 +114,7 @@ def side_window_means(x: jax.Array, *, radius: int, method: str = "slices") -> j
 
     Returns
     -------
-    float32 (8, ..., H, W), windows in the order of ``SIDE_WINDOW_NAMES`` (L R U D NW NE SW SE).
+    float32 (8, ..., H, W), windows in the order L R U D NW NE SW SE (``SIDE_WINDOWS``).
 
     Examples
     --------
@@ -129,7 +134,7 @@ def side_window_index(guide: jax.Array, *, radius: int, method: str = "slices") 
 
     Parameters
     ----------
-    guide : float32 (C, H, W) or (H, W)
+    guide : float32 (H, W, C) or (H, W)
         Guidance image; with channels, distances are summed over them (L1).
     radius : int >= 1
 
@@ -137,9 +142,18 @@ def side_window_index(guide: jax.Array, *, radius: int, method: str = "slices") 
     -------
     int32 (H, W)
     """
-    check_map("guide", guide, radius)
     check_rank("guide", guide, (2, 3))
-    g = guide if guide.ndim == 3 else guide[None]
+    check_floating("guide", guide)
+    check_positive_int("radius", radius)
+    return _closest_window_index(_channels_first(guide), radius, method)
+
+
+def _channels_first(guide: jax.Array) -> jax.Array:
+    """Guide (H, W, C) or (H, W) -> (C, H, W), the layout the window sums batch over."""
+    return jnp.moveaxis(guide, -1, 0) if guide.ndim == 3 else guide[None]
+
+
+def _closest_window_index(g: jax.Array, radius: int, method: str) -> jax.Array:
     mean = _side_window_mean_fn(g, radius, method)
     best_distance = best_index = None
     for k in range(8):
@@ -200,7 +214,7 @@ def side_window_box_filter(
     x : float32 (..., H, W)
     radius : int >= 1
     iterations : int >= 0
-    guide : float32 (C, H, W) or (H, W), optional
+    guide : float32 (H, W, C) or (H, W), optional
     method : {"slices", "cumsum", "reduce_window"}
 
     Returns
@@ -218,15 +232,16 @@ def side_window_box_filter(
     if iterations < 0:
         raise ValueError(f"iterations must be >= 0, got {iterations}")
     if guide is not None:
-        check_map("guide", guide, radius)
         check_rank("guide", guide, (2, 3))
-        if guide.shape[-2:] != x.shape[-2:]:
-            raise ValueError(f"guide size {guide.shape[-2:]} differs from x size {x.shape[-2:]}")
+        check_floating("guide", guide)
+        if guide.shape[:2] != x.shape[-2:]:
+            raise ValueError(f"guide size {guide.shape[:2]} differs from x size {x.shape[-2:]}")
+        guide = _channels_first(guide)
     for _ in range(iterations):
         if guide is None:
             x = _closest_side_window_mean(x, radius, method)
         else:
-            index = side_window_index(guide, radius=radius, method=method)
+            index = _closest_window_index(guide, radius, method)
             x = select_side_window_mean(x, index, radius=radius, method=method)
             guide = select_side_window_mean(guide, index, radius=radius, method=method)
     return x

@@ -129,7 +129,7 @@ def test_missing_data_directory(tmp_path):
 
 def test_find_data_root_priority(tmp_path, monkeypatch):
     monkeypatch.setenv("SSWJAX_DATA", str(tmp_path / "env"))
-    assert find_data_root(tmp_path / "arg") == tmp_path / "arg"
+    assert find_data_root(data=tmp_path / "arg") == tmp_path / "arg"
     assert find_data_root() == tmp_path / "env"
     monkeypatch.delenv("SSWJAX_DATA")
     default = find_data_root()

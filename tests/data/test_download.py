@@ -306,7 +306,7 @@ def test_download_middeval3_bad_archives(server, tmp_path):
 
 
 def test_middeval3_urls():
-    assert download.middeval3_urls("F", base_url="http://h/zip") == [
+    assert download.middeval3_urls(resolution="F", base_url="http://h/zip") == [
         "http://h/zip/MiddEval3-data-F.zip", "http://h/zip/MiddEval3-GT0-F.zip"]  # fmt: skip
     assert download.middeval3_urls()[0] == download.DEFAULT_BASE_URL + "MiddEval3-data-Q.zip"
     with pytest.raises(ValueError, match="resolution must be one of Q, H, F"):

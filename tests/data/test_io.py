@@ -15,7 +15,6 @@ from sswjax.data.io import (
     disparity_to_rgb,
     read_image,
     read_pfm,
-    to_float_image,
     write_disparity_png,
     write_pfm,
 )
@@ -343,30 +342,6 @@ def test_read_image_one_bit_png(tmp_path, texture):
     assert image.dtype == np.uint8
     np.testing.assert_array_equal(image, bits * 255)
 
-
-def test_to_float_image():
-    np.testing.assert_array_equal(to_float_image(np.array([[0, 255]], np.uint8)), [[0, 1]])
-    out = to_float_image(np.array([[0, 65535]], np.uint16))
-    assert out.dtype == np.float32
-    np.testing.assert_array_equal(out, [[0, 1]])
-    src = np.full((2, 2, 3), 0.25)
-    out = to_float_image(src)
-    assert out.dtype == np.float32 and out.shape == (2, 2, 3) and np.all(out == 0.25)
-
-
-def test_to_float_image_errors():
-    with pytest.raises(TypeError, match="bool"):
-        to_float_image(np.zeros((2, 2), bool))
-    with pytest.raises(TypeError, match="int32"):
-        to_float_image(np.zeros((2, 2), np.int32))
-    with pytest.raises(ValueError, match="non-finite"):
-        to_float_image(np.array([[0.0, np.nan]]))
-    with pytest.raises(ValueError, match="non-finite"):
-        to_float_image(np.array([[0.0, 1e300]]))  # overflows float32, without a warning
-    with pytest.raises(ValueError, match="shape"):
-        to_float_image(np.zeros((2, 2, 4), np.uint8))
-    with pytest.raises(ValueError, match="rank"):
-        to_float_image(np.zeros(4, np.uint8))
 
 
 # ----------------------------------------------------------------------------- display

@@ -169,7 +169,8 @@ def test_side_window_means_rejects_bad_method():
 def test_side_window_index(channels, method, rng):
     shape = (9, 11) if channels is None else (channels, 9, 11)
     guide = rng.random(shape).astype(np.float32)
-    ours = jitted(side_window_index, guide, radius=2, method=method)
+    channels_last = guide if channels is None else np.moveaxis(guide, 0, -1)  # (H, W, C) layout
+    ours = jitted(side_window_index, channels_last, radius=2, method=method)
     assert ours.dtype == np.int32
     np.testing.assert_array_equal(ours, index_reference(guide, 2))
     # most of the eight windows occur on random data (the test is not vacuous)
@@ -180,7 +181,7 @@ def test_side_window_index(channels, method, rng):
 def test_side_window_index_first_window_on_ties(method, rng):
     # a flat guide: all eight windows are equally close, the first (L) wins (zeros: every
     # window mean is exactly 0 whatever the rounding of 1 / count, so the distances tie)
-    flat = np.zeros((2, 9, 11), np.float32)
+    flat = np.zeros((9, 11, 2), np.float32)
     np.testing.assert_array_equal(jitted(side_window_index, flat, radius=2, method=method), 0)
     x = rng.random((9, 11)).astype(np.float32)
     guided = jitted(
@@ -219,8 +220,10 @@ def test_side_window_box_filter_guided(guide_channels, method, rng):
     shape = (9, 11) if guide_channels is None else (guide_channels, 9, 11)
     guide = rng.random(shape).astype(np.float32)
     x = rng.random((3, 9, 11)).astype(np.float32)
+    channels_last = guide if guide_channels is None else np.moveaxis(guide, 0, -1)
     ours = jitted(
-        lambda x, guide: side_window_box_filter(x, radius=1, iterations=2, guide=guide, method=method), x, guide
+        lambda x, guide: side_window_box_filter(x, radius=1, iterations=2, guide=guide, method=method),
+        x, channels_last,
     )
     ref_x, ref_guide = x.astype(np.float64), guide.astype(np.float64)
     for _ in range(2):

@@ -1,0 +1,257 @@
+"""The one table of interchangeable parts: aggregators, optimizers, fills, presets, method
+variants and peers.
+
+Every place that names a part derives from these tables: parameter validation
+(``Params.aggregation`` must be a key of :data:`AGGREGATORS`), the pipeline (which calls the
+entry's function), the CLI's help, the evaluation's method names (:func:`method_names`) and the
+Table 1 script. Adding a part is adding one entry.
+
+Conventions
+-----------
+* An **aggregator** is a pure function ``fn(cost, guide, *, radius, iterations,
+  window_selection, segments) -> cost`` on a float32 ``(D, H, W)`` cost volume (lower is
+  better) with the left image as guide, float32 ``(H, W, C)`` in [0, 1]. ``segments`` is a
+  :class:`~sswjax.stages.aggregation.SegmentTerm` (superpixel labels and the weight lambda) or
+  ``None``; an aggregator that does not use an option ignores it. ``radius`` is the entry's own
+  radius when it declares one, else ``Params.aggregation_radius``.
+* An **optimizer** runs between aggregation and selection on the whole aggregated volume:
+  ``fn(cost, guide, *, labels, params) -> cost`` with ``labels`` the superpixels (int32
+  ``(H, W)``) or ``None`` and ``params`` the :class:`~sswjax.params.Params`; ``None`` for the
+  paper's winner-takes-all directly on the aggregated cost.
+* A **variant** is a named set of parameter changes applied on top of the user's parameters
+  (the paper's ablations and the baseline aggregators as methods).
+* A **fill** replaces the disparities the left-right check rejected:
+  ``fn(disparity, valid, *, labels, num_segments, params) -> disparity`` on float32 ``(H, W)``
+  maps with the bool ``(H, W)`` validity.
+* A **preset** is a named set of parameter changes on top of ``Params()`` (what
+  :func:`sswjax.preset` returns, ``--preset`` on the command line).
+* A **peer** is another project's matcher ``fn(left, right, ndisp) -> float32 (H, W)`` on NumPy
+  images as read from disk, run under our protocol (optional dependencies).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple
+
+from sswjax.evaluation.peers import pandora_disparity, sgbm_disparity
+from sswjax.stages.aggregation import segment_side_window_aggregation
+from sswjax.stages.planes import plane_refine
+from sswjax.stages.refinement import fill_invalid
+from sswjax.stages.sgm import semi_global
+from sswjax.stages.baselines import (
+    bilateral_filter,
+    box_filter,
+    guided_filter,
+    iterated_guided_filter,
+    median_cost_filter,
+)
+
+
+class Aggregator(NamedTuple):
+    """An entry of :data:`AGGREGATORS`.
+
+    Attributes
+    ----------
+    fn : callable
+        ``fn(cost, guide, *, radius, iterations, window_selection, segments) -> cost``.
+    summary : str
+        One line for the CLI's help and the tables.
+    radius : int or None
+        The radius the aggregator always runs with; ``None`` honours
+        ``Params.aggregation_radius``.
+    uses_segments : bool
+        Whether it uses the superpixels (the pipeline runs SLIC only then).
+    """
+
+    fn: Callable[..., Any]
+    summary: str
+    radius: int | None = None
+    uses_segments: bool = False
+
+
+AGGREGATORS: dict[str, Aggregator] = {
+    "ssw": Aggregator(
+        segment_side_window_aggregation,
+        "segment-side-window box filter with the superpixel cost term, the paper's method (Eq. 7)",
+        uses_segments=True,
+    ),
+    "box": Aggregator(
+        lambda cost, guide, *, radius, **_: box_filter(cost, radius=radius),
+        "square box mean (Scharstein & Szeliski 2002)",
+    ),
+    "bf": Aggregator(
+        lambda cost, guide, *, radius, **_: bilateral_filter(cost, guide, radius=radius),
+        "bilateral / adaptive support weights (Yoon & Kweon 2006)",
+    ),
+    "gf": Aggregator(
+        lambda cost, guide, *, radius, **_: guided_filter(cost, guide, radius=radius),
+        "colour guided filter, eps 1e-4 (He et al. 2013; Hosni et al. 2013)",
+        radius=9,
+    ),
+    "igf": Aggregator(
+        lambda cost, guide, *, radius, **_: iterated_guided_filter(cost, guide, radius=radius),
+        "two guided-filter passes",
+        radius=9,
+    ),
+    "mf": Aggregator(
+        lambda cost, guide, *, radius, **_: median_cost_filter(cost, radius=radius),
+        "median of each cost slice, 5x5",
+        radius=2,
+    ),
+}
+"""Aggregation name (``Params.aggregation``) -> :class:`Aggregator`. The baselines are those of
+the paper's Table 1 (BF, GF, iGF, MF) and a plain box; the guided filters and the median run
+with the usual radius of local stereo (guided filter r 9 as in Hosni et al. 2013, median 5x5),
+box and bilateral with SSW's own radius."""
+
+
+class Optimizer(NamedTuple):
+    """An entry of :data:`OPTIMIZERS`.
+
+    Attributes
+    ----------
+    fn : callable or None
+        ``fn(cost, guide, *, labels, params) -> cost``; ``None``: no optimisation.
+    summary : str
+        One line for the CLI's help and the tables.
+    uses_segments : bool
+        Whether it uses the superpixels.
+    """
+
+    fn: Callable[..., Any] | None
+    summary: str
+    uses_segments: bool = False
+
+
+def _semi_global(cost, guide, *, labels, params):
+    static, dynamic = params.static, params.dynamic
+    return semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2, sigma=dynamic.sgm_sigma,
+                       paths=static.sgm_paths, labels=labels,
+                       segment_factor=dynamic.sgm_segment_factor)
+
+
+OPTIMIZERS: dict[str, Optimizer] = {
+    "none": Optimizer(None, "winner-takes-all directly on the aggregated cost (the paper, Eq. 8)"),
+    "sgm": Optimizer(_semi_global, "semi-global optimisation of the aggregated cost, 4 or 8 "
+                     "paths, guide-adaptive P2, reduced across superpixels (Hirschmuller 2008)",
+                     uses_segments=True),
+}
+"""Optimizer name (``Params.optimizer``) -> :class:`Optimizer`."""
+
+
+class Fill(NamedTuple):
+    """An entry of :data:`FILLS`: ``fn(disparity, valid, *, labels, num_segments, params)``,
+    a one-line summary and whether it uses the superpixels."""
+
+    fn: Callable[..., Any]
+    summary: str
+    uses_segments: bool = False
+
+
+def _background_fill(disparity, valid, *, labels, num_segments, params):
+    return fill_invalid(disparity, valid, radius=params.static.fill_radius)
+
+
+def _plane_fill(disparity, valid, *, labels, num_segments, params):
+    filled = _background_fill(disparity, valid, labels=labels, num_segments=num_segments,
+                              params=params)
+    if num_segments == 0:
+        return filled
+    return plane_refine(filled, valid, labels, num_segments=num_segments,
+                        min_support=params.dynamic.plane_min_support,
+                        inlier_scale=params.dynamic.plane_inlier_scale)
+
+
+FILLS: dict[str, Fill] = {
+    "background": Fill(_background_fill, "the nearer-background valid disparity of the row, then "
+                       "a median over the filled pixels (Eq. 9 as we read it)"),
+    "plane": Fill(_plane_fill, "a robust plane per superpixel through its valid pixels where "
+                  "they support it, else the background fill", uses_segments=True),
+}
+"""Fill name (``Params.fill``) -> :class:`Fill`."""
+
+
+class Variant(NamedTuple):
+    """An entry of :data:`VARIANTS`: parameter changes and a one-line summary."""
+
+    changes: Mapping[str, Any]
+    summary: str
+
+
+VARIANTS: dict[str, Variant] = {
+    "ssw-noseg": Variant({"n_segments": 0}, "SSW without the segment term"),
+    "ssw-norefine": Variant({"refine_radius": 0}, "SSW without the side-window median refinement"),
+    "ssw-nolr": Variant({"lr_check": False}, "SSW without the left-right check and fill"),
+    "ssw-guide": Variant({"window_selection": "guide"}, "SSW, windows chosen on the left image"),
+    "ssw-tad": Variant({"tad_weight": 1.0, "gradient_weight": 0.0, "census_weight": 0.0},
+                       "SSW with the TAD cost alone"),
+    "ssw-gm": Variant({"tad_weight": 0.0, "gradient_weight": 1.0, "census_weight": 0.0},
+                      "SSW with the gradient cost alone"),
+    "ssw-census": Variant({"tad_weight": 0.0, "gradient_weight": 0.0, "census_weight": 1.0},
+                          "SSW with the census cost alone"),
+}
+"""Ablations of SSW: method name -> :class:`Variant` (applied on top of the user's parameters).
+Every aggregator of :data:`AGGREGATORS` is a method too, named after it."""
+
+
+class Preset(NamedTuple):
+    """An entry of :data:`PRESETS`: parameter changes from ``Params()`` and a one-line summary."""
+
+    changes: Mapping[str, Any]
+    summary: str
+
+
+PRESETS: dict[str, Preset] = {
+    "paper": Preset({}, "the paper's method: SSW aggregation, winner-takes-all, LR check, fill, "
+                        "side-window median"),
+    "accurate": Preset({"optimizer": "sgm"},
+                       "SSW aggregation, then semi-global optimisation of the aggregated cost"),
+}
+"""Preset name -> :class:`Preset`."""
+
+
+class Peer(NamedTuple):
+    """An entry of :data:`PEERS`: another project's matcher and a one-line summary."""
+
+    fn: Callable[..., Any]
+    summary: str
+
+
+PEERS: dict[str, Peer] = {
+    "sgbm": Peer(sgbm_disparity, "OpenCV StereoSGBM 3-way, block 3, background fill (extra [bench])"),
+    "pandora": Peer(pandora_disparity,
+                    "CNES Pandora census 5x5 + SGM, background fill (extra [pandora])"),
+}
+"""Method name -> :class:`Peer`."""
+
+
+def variant_changes(name: str) -> Mapping[str, Any]:
+    """Parameter changes of the SSW method ``name`` (an aggregator or a variant).
+
+    Raises ``KeyError`` for a name that is neither.
+
+    Examples
+    --------
+    >>> variant_changes("gf"), variant_changes("ssw")
+    ({'aggregation': 'gf'}, {})
+    """
+    if name in AGGREGATORS:
+        return {} if name == "ssw" else {"aggregation": name}
+    return VARIANTS[name].changes
+
+
+def method_names() -> tuple[str, ...]:
+    """Every method ``sswjax evaluate --methods`` accepts: aggregators, variants, peers."""
+    return (*AGGREGATORS, *VARIANTS, *PEERS)
+
+
+def preset_summaries() -> dict[str, str]:
+    """Preset name -> one-line summary (for the CLI's help)."""
+    return {name: entry.summary for name, entry in PRESETS.items()}
+
+
+def method_summaries() -> dict[str, str]:
+    """Method name -> one-line summary (for the CLI's help)."""
+    tables: list[Mapping[str, Any]] = [AGGREGATORS, VARIANTS, PEERS]
+    return {name: entry.summary for table in tables for name, entry in table.items()}

@@ -1,0 +1,60 @@
+"""The public API's conventions, checked over every public function of every module.
+
+As in dm-pix's ``api_test.py``: array arguments are positional, every option (a parameter with
+a default value) is keyword-only, so a call reads ``f(left, right, radius=4)`` and options can
+be added or reordered without breaking callers.
+"""
+
+import importlib
+import inspect
+import pkgutil
+
+import pytest
+
+import sswjax
+
+# The command line takes argv, not arrays and options; its functions are not API.
+_NOT_API = {"sswjax.cli"}
+
+
+def _public_functions():
+    names = ["sswjax"] + [info.name for info in pkgutil.walk_packages(sswjax.__path__, "sswjax.")]
+    for module_name in names:
+        if module_name in _NOT_API or any(part.startswith("_") for part in module_name.split(".")):
+            continue
+        module = importlib.import_module(module_name)
+        for name, value in vars(module).items():
+            if name.startswith("_") or not inspect.isfunction(value):
+                continue
+            if value.__module__ != module_name:  # re-exported: checked where it is defined
+                continue
+            yield f"{module_name}.{name}", value
+
+
+PUBLIC = dict(_public_functions())
+
+
+def test_the_api_is_not_empty():
+    assert len(PUBLIC) > 50
+    assert "sswjax.api.match" in PUBLIC
+
+
+@pytest.mark.parametrize("name", sorted(PUBLIC))
+def test_options_are_keyword_only(name):
+    signature = inspect.signature(PUBLIC[name])
+    positional_with_default = [
+        parameter.name
+        for parameter in signature.parameters.values()
+        if parameter.kind in (parameter.POSITIONAL_ONLY, parameter.POSITIONAL_OR_KEYWORD)
+        and parameter.default is not parameter.empty
+    ]
+    assert not positional_with_default, (
+        f"{name} takes options positionally: {positional_with_default}; make them keyword-only")
+
+
+def test_top_level_reexports_the_public_api():
+    for name in sswjax.__all__:
+        assert hasattr(sswjax, name)
+    for name in ("match", "ssw_disparity", "aggregated_cost", "select_and_refine", "Params",
+                 "load_params", "save_params", "ShapeBuckets"):
+        assert name in sswjax.__all__
