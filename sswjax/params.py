@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import jax
 
-from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PRESETS
+from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
 from sswjax.stages.aggregation import WINDOW_SELECTIONS
 from sswjax.stages.sgm import PATH_COUNTS
 
@@ -72,6 +72,11 @@ class StaticParams(NamedTuple):
     fill : str
         A key of :data:`sswjax.registry.FILLS`: how the pixels the left-right check rejects
         are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first).
+    preprocess : str
+        A key of :data:`sswjax.registry.PREPROCESSORS`: what the cost sees of the images
+        (``"none"``; ``"lcn"``, local contrast normalisation, :mod:`sswjax.stages.preprocess`).
+    lcn_radius : int
+        Window radius of the local contrast normalisation.
     """
 
     census_height: int = 7
@@ -91,6 +96,8 @@ class StaticParams(NamedTuple):
     optimizer: str = "none"
     sgm_paths: int = 8
     fill: str = "background"
+    preprocess: str = "none"
+    lcn_radius: int = 7
 
 
 class DynamicParams(NamedTuple):
@@ -125,6 +132,8 @@ class DynamicParams(NamedTuple):
         Share of a superpixel's pixels that must be valid inliers for its plane to fill it.
     plane_inlier_scale : float
         Residual (pixels) up to which a pixel keeps full weight in the robust plane fit.
+    lcn_eps : float
+        Added to the local standard deviation by the local contrast normalisation.
     """
 
     tad_weight: Any = 0.05000000074505806
@@ -141,6 +150,7 @@ class DynamicParams(NamedTuple):
     sgm_segment_factor: Any = 1.0
     plane_min_support: Any = 0.25
     plane_inlier_scale: Any = 1.0
+    lcn_eps: Any = 4 / 255
 
 
 @jax.tree_util.register_dataclass
@@ -195,13 +205,15 @@ _INT_FIELDS = {
     "refine_radius": (0, 20),
     "refine_iterations": (0, 20),
     "disparity_chunk": (0, 100_000),
+    "lcn_radius": (1, 50),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
-                  "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "fill": FILLS}
+                  "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "fill": FILLS,
+                  "preprocess": PREPROCESSORS}
 _UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",
-                    "plane_inlier_scale")
+                    "plane_inlier_scale", "lcn_eps")
 
 
 def _check_value(name: str, value) -> Any:

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
-from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS
+from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS
 from sswjax.stages.aggregation import SegmentTerm
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.stages.filters import side_window_median_filter
@@ -110,8 +110,11 @@ def _aggregate_slices(
 def _features(left, right, params: Params):
     static = params.static
     with jax.named_scope(STAGES[0]):
+        preprocess = PREPROCESSORS[static.preprocess].fn
+        seen = (left, right) if preprocess is None else (
+            preprocess(left, params=params), preprocess(right, params=params))
         features = matching_features(
-            left, right, census_height=static.census_height, census_width=static.census_width
+            *seen, census_height=static.census_height, census_width=static.census_width
         )
     with jax.named_scope(STAGES[1]):
         labels, num_segments = superpixels(left, params)

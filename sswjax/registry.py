@@ -1,5 +1,5 @@
-"""The one table of interchangeable parts: aggregators, optimizers, fills, presets, method
-variants and peers.
+"""The one table of interchangeable parts: pre-processors, aggregators, optimizers, fills,
+presets, method variants and peers.
 
 Every place that names a part derives from these tables: parameter validation
 (``Params.aggregation`` must be a key of :data:`AGGREGATORS`), the pipeline (which calls the
@@ -8,6 +8,9 @@ Table 1 script. Adding a part is adding one entry.
 
 Conventions
 -----------
+* A **pre-processor** maps each image of the pair before the matching cost:
+  ``fn(image, *, params) -> image`` on float32 ``(H, W, C)`` in [0, 1] (superpixels and guides
+  keep the original images); ``None`` for none.
 * An **aggregator** is a pure function ``fn(cost, guide, *, radius, iterations,
   window_selection, segments) -> cost`` on a float32 ``(D, H, W)`` cost volume (lower is
   better) with the left image as guide, float32 ``(H, W, C)`` in [0, 1]. ``segments`` is a
@@ -37,6 +40,7 @@ from typing import Any, NamedTuple
 from sswjax.evaluation.peers import pandora_disparity, sgbm_disparity
 from sswjax.stages.aggregation import segment_side_window_aggregation
 from sswjax.stages.planes import plane_refine
+from sswjax.stages.preprocess import local_contrast_normalization
 from sswjax.stages.refinement import fill_invalid
 from sswjax.stages.sgm import semi_global
 from sswjax.stages.baselines import (
@@ -46,6 +50,24 @@ from sswjax.stages.baselines import (
     iterated_guided_filter,
     median_cost_filter,
 )
+
+
+class Preprocessor(NamedTuple):
+    """An entry of :data:`PREPROCESSORS`: ``fn(image, *, params)`` (or ``None``) and a summary."""
+
+    fn: Callable[..., Any] | None
+    summary: str
+
+
+PREPROCESSORS: dict[str, Preprocessor] = {
+    "none": Preprocessor(None, "the images as given (the paper)"),
+    "lcn": Preprocessor(
+        lambda image, *, params: local_contrast_normalization(
+            image, radius=params.static.lcn_radius, eps=params.dynamic.lcn_eps),
+        "local contrast normalisation of the images seen by the cost (dark, low-contrast pairs)",
+    ),
+}
+"""Pre-processor name (``Params.preprocess``) -> :class:`Preprocessor`."""
 
 
 class Aggregator(NamedTuple):

@@ -85,13 +85,15 @@ def test_presets():
         sswjax.preset("nope")
 
 
+@pytest.mark.parametrize("preprocess", sorted(registry.PREPROCESSORS))
 @pytest.mark.parametrize("name", sorted(registry.FILLS))
 @pytest.mark.parametrize("optimizer", sorted(registry.OPTIMIZERS))
-def test_every_optimizer_and_fill_runs_in_the_pipeline(name, optimizer):
+def test_every_stage_entry_runs_in_the_pipeline(name, optimizer, preprocess):
     rng = np.random.default_rng(5)
     right = rng.random((32, 48, 3), dtype=np.float32)
     left = np.roll(right, 3, axis=1)
-    params = sswjax.Params().replace(fill=name, optimizer=optimizer, n_segments=24)
+    params = sswjax.Params().replace(fill=name, optimizer=optimizer, preprocess=preprocess,
+                                     n_segments=24)
     disparity = sswjax.match(left, right, 8, params=params)
     assert disparity.shape == (32, 48) and np.isfinite(disparity).all()
     assert np.median(disparity[:, 10:]) == pytest.approx(3, abs=0.01)
