@@ -213,6 +213,22 @@ def _aggregated_volume(features, left, labels, num_segments, ndisp, params) -> j
     return blocks.reshape((-1, *blocks.shape[2:]))[:ndisp]
 
 
+def _fold_volume(cost: jax.Array, limit, chunk: int) -> Winners:
+    """The winners of both views over a whole volume (D, H, W), ``chunk`` planes per step of a
+    ``lax.scan`` (0: all planes in one unrolled fold). Each step gathers its planes with their
+    halo; indices outside the volume are clipped, and the fold masks their disparities."""
+    ndisp = cost.shape[0]
+    if chunk == 0 or chunk >= ndisp:
+        return _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
+
+    def step(state, first):
+        planes = jnp.take(cost, jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1), axis=0)
+        return _fold(state, planes, first, limit), None
+
+    winners, _ = jax.lax.scan(step, no_winners(cost.shape[1:]), jnp.arange(0, ndisp, chunk))
+    return winners
+
+
 @functools.partial(jax.jit, static_argnames=("ndisp",))
 def ssw_disparity(
     left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None
@@ -255,8 +271,7 @@ def ssw_disparity(
         with jax.named_scope(STAGES[3]):
             cost = optimizer.fn(cost, left, labels=labels if num_segments else None,
                                 params=params)
-        winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
-        return _refine(winners, params, limit, labels, num_segments)
+        return _refine(_fold_volume(cost, limit, chunk), params, limit, labels, num_segments)
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
         winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)

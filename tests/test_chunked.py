@@ -10,8 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.params import Params
+import sswjax
 from sswjax.api import prepare_pair
+from sswjax.params import Params
 from sswjax.pipeline import ssw_disparity
 
 NDISP = 12
@@ -53,3 +54,18 @@ def test_chunked_under_vmap(pair):
     batched = jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=NDISP))(lefts, rights)
     single = ssw_disparity(lefts[1], rights[1], params, ndisp=NDISP)
     np.testing.assert_allclose(np.asarray(batched[1]), np.asarray(single), atol=1e-5)
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 5])
+def test_optimized_volume_folds_in_chunks_like_the_whole_volume(chunk):
+    # With an optimizer the volume is aggregated (in blocks), optimised whole, then folded in
+    # blocks: the same winners and values as the unrolled fold of the whole volume.
+    rng = np.random.default_rng(7)
+    right = rng.random((30, 50, 3), dtype=np.float32)
+    left = np.roll(right, 4, axis=1)
+    params = sswjax.preset("accurate").replace(n_segments=20)
+    whole = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params.replace(disparity_chunk=0),
+                          ndisp=11)
+    blocks = ssw_disparity(jnp.asarray(left), jnp.asarray(right),
+                           params.replace(disparity_chunk=chunk), ndisp=11)
+    np.testing.assert_allclose(np.asarray(blocks), np.asarray(whole), atol=1e-4, rtol=0)
