@@ -1,11 +1,12 @@
-"""Peak memory of SSW by input scale and disparity chunk, each run in a fresh process.
+"""Peak memory of SSW by preset, input scale and disparity chunk, each run in a fresh process.
 
 A Q pair (MiddEval3 trainingQ, default Motorcycle) is upsampled by ``--scale`` (2 = H, 4 = the
 full-resolution size, 2964 x 1988 with 280 disparities) and matched with
 ``disparity_chunk`` = 0 (whole volume) or K (default 4); the child's peak RSS and wall time are
 reported, printed and written to ``benchmarks/results/memory.md``.
 
-    python benchmarks/memory.py [--scene Motorcycle] [--scales 1 4] [--chunks 0 4] [-o DIR]
+    python benchmarks/memory.py [--presets paper accurate] [--scene Motorcycle] [--scales 1 4]
+                                [--chunks 0 4] [-o DIR]
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ import numpy as np
 import sswjax
 from sswjax.data.datasets import find_data_root, load_middeval3
 
-scene_name, scale, chunk = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+scene_name, scale, chunk, preset = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]
 left, right = (np.repeat(np.repeat(im, scale, axis=0), scale, axis=1) for im in (scene.left, scene.right))
-params = sswjax.Params().replace(disparity_chunk=chunk)
+params = sswjax.preset(preset).replace(disparity_chunk=chunk)
 start = time.perf_counter()
 disparity = sswjax.match(left, right, scene.ndisp * scale, params=params)
 seconds = time.perf_counter() - start
@@ -37,6 +38,7 @@ print(json.dumps({"shape": list(disparity.shape), "ndisp": scene.ndisp * scale, 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--presets", nargs="+", default=("paper",))
     parser.add_argument("--scene", default="Motorcycle")
     parser.add_argument("--scales", type=int, nargs="+", default=(1, 4))
     parser.add_argument("--chunks", type=int, nargs="+", default=(0, 4))
@@ -48,23 +50,26 @@ def main() -> None:
         print(line, flush=True)
         lines.append(line)
 
-    emit("| scale | W x H x D | disparity_chunk | first call s (compile + run) | peak RSS GB |")
-    emit("|---|---|---|---|---|")
-    for scale in args.scales:
-        for chunk in args.chunks:
-            if scale >= 4 and chunk == 0:
-                emit(f"| {scale} | | 0 | skipped: the whole volume needs > 20 GB | |")
-                continue
-            start = time.perf_counter()
-            run = subprocess.run([sys.executable, "-c", CHILD, args.scene, str(scale), str(chunk)],
-                                 capture_output=True, text=True)
-            if run.returncode != 0:
-                emit(f"| {scale} | | {chunk} | failed: {run.stderr.strip().splitlines()[-1]} | |")
-                continue
-            result = json.loads(run.stdout.strip().splitlines()[-1])
-            h, w = result["shape"]
-            emit(f"| {scale} | {w} x {h} x {result['ndisp']} | {chunk} | "
-                 f"{time.perf_counter() - start:.1f} | {result['peak_rss_gb']:.2f} |")
+    emit("| preset | scale | W x H x D | disparity_chunk | first call s (compile + run) | "
+         "peak RSS GB |")
+    emit("|---|---|---|---|---|---|")
+    for preset in args.presets:
+        for scale in args.scales:
+            for chunk in args.chunks:
+                if scale >= 4 and chunk == 0:
+                    emit(f"| {preset} | {scale} | | 0 | skipped: the whole volume needs > 20 GB | |")
+                    continue
+                start = time.perf_counter()
+                run = subprocess.run([sys.executable, "-c", CHILD, args.scene, str(scale), str(chunk),
+                                      preset], capture_output=True, text=True)
+                if run.returncode != 0:
+                    reason = (run.stderr.strip().splitlines() or [f"exit {run.returncode}"])[-1]
+                    emit(f"| {preset} | {scale} | | {chunk} | failed: {reason} | |")
+                    continue
+                result = json.loads(run.stdout.strip().splitlines()[-1])
+                h, w = result["shape"]
+                emit(f"| {preset} | {scale} | {w} x {h} x {result['ndisp']} | {chunk} | "
+                     f"{time.perf_counter() - start:.1f} | {result['peak_rss_gb']:.2f} |")
     args.output.mkdir(parents=True, exist_ok=True)
     (args.output / "memory.md").write_text("\n".join(lines) + "\n")
 

@@ -108,13 +108,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path)
     parser.add_argument("--scenes", nargs="+")
-    parser.add_argument("--params", type=Path)
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--params", type=Path, help="parameters JSON (default: Params())")
+    group.add_argument("--preset", choices=list(sswjax.PRESETS), help="a named preset")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--pandora", action="store_true",
                         help="also time CNES Pandora (census + SGM; pip install 'sswjax[pandora]')")
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
+    params = sswjax.preset(args.preset) if args.preset else params
     scenes = load_middeval3(find_data_root(data=args.data), scenes=args.scenes)
     rows = []
     if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
@@ -128,7 +131,8 @@ def main() -> None:
     median = {k: float(np.median([r[k] for r in rows])) for k in keys if k not in ("scene", "size")}
     rss_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
     lines = [
-        f"SSW vs OpenCV StereoSGBM 3-way, {len(rows)} pairs, median of {args.repeats} warm runs "
+        f"SSW ({args.preset or args.params or 'defaults'}) vs OpenCV StereoSGBM 3-way, {len(rows)} "
+        f"pairs, median of {args.repeats} warm runs "
         f"each; jax {jax.__version__}, {jax.devices()[0].platform}; peak RSS {rss_gb:.2f} GB; "
         "stage columns: milliseconds from one profiled run",
         "",
