@@ -265,9 +265,10 @@ def ssw_disparity(
     optimizer = OPTIMIZERS[params.static.optimizer]
     if optimizer.fn is not None:
         cost = _aggregated_volume(features, left, labels, num_segments, ndisp, params)
-        # Disparities beyond the traced range take a high finite cost: the paths must not pass
-        # through them, and +inf would turn the recursion's differences into NaN.
-        cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost, _OUT_OF_RANGE_COST)
+        if valid_ndisp is not None:
+            # Disparities beyond the traced range take a high finite cost: the paths must not
+            # pass through them, and +inf would turn the recursion's differences into NaN.
+            cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost, _OUT_OF_RANGE_COST)
         with jax.named_scope(STAGES[3]):
             cost = optimizer.fn(cost, left, labels=labels if num_segments else None,
                                 params=params)
