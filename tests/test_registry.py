@@ -85,9 +85,14 @@ def test_presets():
         sswjax.preset("nope")
 
 
-@pytest.mark.parametrize("preprocess", sorted(registry.PREPROCESSORS))
-@pytest.mark.parametrize("name", sorted(registry.FILLS))
-@pytest.mark.parametrize("optimizer", sorted(registry.OPTIMIZERS))
+# Every non-default entry alone, and all of them together (the defaults run everywhere else).
+STAGE_CASES = [(fill, "none", "none") for fill in registry.FILLS if fill != "background"] + [
+    ("background", opt, "none") for opt in registry.OPTIMIZERS if opt != "none"] + [
+    ("background", "none", pre) for pre in registry.PREPROCESSORS if pre != "none"] + [
+    ("plane", "sgm", "lcn")]
+
+
+@pytest.mark.parametrize("name, optimizer, preprocess", STAGE_CASES)
 def test_every_stage_entry_runs_in_the_pipeline(name, optimizer, preprocess):
     rng = np.random.default_rng(5)
     right = rng.random((32, 48, 3), dtype=np.float32)
