@@ -16,7 +16,6 @@ a parameter file. Writes Markdown and CSV (``-o``, default ``benchmarks/results/
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 import time
@@ -29,6 +28,8 @@ from sswjax.api import ShapeBuckets
 from sswjax.data.layouts import load_scenes
 from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.evaluation.runner import SCORINGS, _average
+
+from _report import write_report  # benchmarks/, on the path when run as a script
 
 SETS = {  # name -> (folder under the data root, scoring, reported columns)
     "trainingQ": ("MiddEval3", "middeval3",
@@ -80,18 +81,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     configs = [parse_config(text) for text in args.config]
     buckets = ShapeBuckets(size_step=args.bucket_step, ndisp_step=32)
-    columns = [(s, region, key) for s in args.sets for region, key in SETS[s][2]]
     rows = []
     for set_name in args.sets:
         folder, scoring_name, _ = SETS[set_name]
         scoring = SCORINGS[scoring_name]
-        wanted = None
-        if args.scenes:
-            wanted = [n for n in args.scenes]
-        try:
-            scenes = load_scenes(args.data / folder, scenes=wanted)
-        except ValueError:
-            scenes = [s for s in load_scenes(args.data / folder) if not wanted or s.name in wanted]
+        scenes = [s for s in load_scenes(args.data / folder)
+                  if not args.scenes or s.name in args.scenes]
         if not scenes:
             continue
         for k, (name, params) in enumerate(configs):
@@ -109,15 +104,7 @@ def main(argv=None) -> int:
     for row in rows:
         lines.append("| " + " | ".join(row[k] if k == "config" else f"{row[k]:.2f}" for k in keys)
                      + " |")
-    text = "\n".join(lines)
-    print(text)
-    args.output.mkdir(parents=True, exist_ok=True)
-    (args.output / "ablation.md").write_text(text + "\n")
-    with open(args.output / "ablation.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows(rows)
-    del columns
+    write_report(args.output, "ablation", "\n".join(lines), rows, keys)
     return 0
 
 

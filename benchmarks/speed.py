@@ -12,7 +12,6 @@ both. Writes Markdown and CSV; prints the Markdown.
 from __future__ import annotations
 
 import argparse
-import csv
 import gzip
 import json
 import re
@@ -26,10 +25,12 @@ import jax.numpy as jnp
 import numpy as np
 
 import sswjax
+from sswjax.api import prepare_pair
 from sswjax.data.datasets import find_data_root, load_middeval3
 from sswjax.evaluation.peers import sgbm_disparity
-from sswjax.api import prepare_pair
 from sswjax.pipeline import STAGES, ssw_disparity
+
+from _report import write_report  # benchmarks/, on the path when run as a script
 
 
 def _timed(fn, *args):
@@ -148,14 +149,7 @@ def main() -> None:
             f"{r['sgbm_s']:.3f} | {r['ratio']:.1f} | {r['mde_per_s']:.0f} | {stage_cells} |"
             + (f" {r['pandora_s']:.2f} | {r['pandora_ratio']:.1f} |" if args.pandora else "")
         )
-    table = "\n".join(lines)
-    print(table)
-    args.output.mkdir(parents=True, exist_ok=True)
-    (args.output / "speed.md").write_text(table + "\n")
-    with open(args.output / "speed.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_report(args.output, "speed", "\n".join(lines), rows, keys)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,18 @@
+"""Writing a benchmark's results: the Markdown table printed and saved, and the rows as CSV."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+
+def write_report(folder: Path, stem: str, table: str, rows: Sequence[Mapping], keys: Sequence[str]) -> None:
+    """Print ``table`` and write it to ``folder/stem.md``, and ``rows`` to ``folder/stem.csv``."""
+    print(table)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{stem}.md").write_text(table + "\n")
+    with open(folder / f"{stem}.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(keys))
+        writer.writeheader()
+        writer.writerows(rows)
