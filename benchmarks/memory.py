@@ -24,10 +24,10 @@ import numpy as np
 import sswjax
 from sswjax.data.datasets import find_data_root, load_middeval3
 
-scene_name, scale, chunk, preset = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+scene_name, scale, chunk, preset, strips = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
 scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]
 left, right = (np.repeat(np.repeat(im, scale, axis=0), scale, axis=1) for im in (scene.left, scene.right))
-params = sswjax.preset(preset).replace(disparity_chunk=chunk)
+params = sswjax.preset(preset).replace(disparity_chunk=chunk, strip_rows=strips)
 start = time.perf_counter()
 disparity = sswjax.match(left, right, scene.ndisp * scale, params=params)
 seconds = time.perf_counter() - start
@@ -40,6 +40,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--presets", nargs="+", default=("paper",))
     parser.add_argument("--scene", default="Motorcycle")
+    parser.add_argument("--strip-rows", type=int, default=0,
+                        help="match in strips of this many rows (Params.strip_rows; 0: whole)")
     parser.add_argument("--scales", type=int, nargs="+", default=(1, 4))
     parser.add_argument("--chunks", type=int, nargs="+", default=(0, 4))
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
@@ -50,6 +52,7 @@ def main() -> None:
         print(line, flush=True)
         lines.append(line)
 
+    emit(f"strip_rows {args.strip_rows}")
     emit("| preset | scale | W x H x D | disparity_chunk | first call s (compile + run) | "
          "peak RSS GB |")
     emit("|---|---|---|---|---|---|")
@@ -61,7 +64,7 @@ def main() -> None:
                     continue
                 start = time.perf_counter()
                 run = subprocess.run([sys.executable, "-c", CHILD, args.scene, str(scale), str(chunk),
-                                      preset], capture_output=True, text=True)
+                                      preset, str(args.strip_rows)], capture_output=True, text=True)
                 if run.returncode != 0:
                     reason = (run.stderr.strip().splitlines() or [f"exit {run.returncode}"])[-1]
                     emit(f"| {preset} | {scale} | | {chunk} | failed: {reason} | |")

@@ -8,6 +8,7 @@ float32 ``(H, W)`` disparities in pixels.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -182,11 +183,56 @@ def match(
 
     params = Params() if params is None else check_params(params)
     left, right = checked_pair(left, right, ndisp, params)
-    if buckets is None:
-        return np.asarray(ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=int(ndisp)))
     height, width = left.shape[:2]
-    padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
-    left, right = pad_to_bucket(left, right, padded_h, padded_w)
-    disparity = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=padded_ndisp,
-                              valid_ndisp=jnp.int32(ndisp))
-    return np.asarray(disparity)[:height, :width]
+    if buckets is None:
+        run = functools.partial(ssw_disparity, params=params, ndisp=int(ndisp))
+    else:
+        padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
+        left, right = pad_to_bucket(left, right, padded_h, padded_w)
+        run = functools.partial(ssw_disparity, params=params, ndisp=padded_ndisp,
+                                valid_ndisp=jnp.int32(ndisp))
+    disparity = in_strips(run, left, right, rows=params.static.strip_rows,
+                          overlap=params.static.strip_overlap)
+    return disparity[:height, :width]
+
+
+def in_strips(run, left: np.ndarray, right: np.ndarray, *, rows: int, overlap: int) -> np.ndarray:
+    """``run(left, right)`` on overlapping horizontal strips of the pair, stitched.
+
+    Each call sees ``rows + 2 * overlap`` image rows (one shape, so one compilation) and gives
+    its ``rows`` central rows; strips at the top and bottom slide inside the image. Memory
+    follows the strip's height instead of the image's; what a strip cannot see (the image
+    beyond its overlap) is what changes: vertical SGM paths and the superpixels start afresh
+    at its edges. ``rows=0`` (or a strip taller than the image) runs the whole pair at once.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(left, right) -> (H', W)`` disparity of float32 ``(H', W, C)`` images.
+    left, right : float32 (H, W, C)
+    rows, overlap : int >= 0
+
+    Returns
+    -------
+    numpy.ndarray, float32 (H, W)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> image = np.arange(10.0)[:, None, None] * np.ones((10, 3, 1))
+    >>> rows_seen = in_strips(lambda l, r: l[..., 0], image, image, rows=4, overlap=1)
+    >>> rows_seen[:, 0].tolist()
+    [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    """
+    height = left.shape[0]
+    window = rows + 2 * overlap
+    if rows <= 0 or window >= height:
+        return np.asarray(run(jnp.asarray(left), jnp.asarray(right)))
+    out = np.empty(left.shape[:2], np.float32)
+    for first in range(0, height, rows):
+        last = min(first + rows, height)
+        top = min(max(first - overlap, 0), height - window)
+        strip = np.asarray(run(jnp.asarray(left[top:top + window]),
+                               jnp.asarray(right[top:top + window])))
+        out[first:last] = strip[first - top:last - top]
+    return out

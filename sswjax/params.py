@@ -77,6 +77,11 @@ class StaticParams(NamedTuple):
         (``"none"``; ``"lcn"``, local contrast normalisation, :mod:`sswjax.stages.preprocess`).
     lcn_radius : int
         Window radius of the local contrast normalisation.
+    strip_rows, strip_overlap : int
+        ``strip_rows > 0``: :func:`sswjax.match` runs the pair in horizontal strips of that
+        many rows, each seen with ``strip_overlap`` more rows above and below
+        (:func:`sswjax.api.in_strips`): memory follows the strip, not the image. 0 (default):
+        the whole image at once.
     """
 
     census_height: int = 7
@@ -98,6 +103,8 @@ class StaticParams(NamedTuple):
     fill: str = "background"
     preprocess: str = "none"
     lcn_radius: int = 7
+    strip_rows: int = 0
+    strip_overlap: int = 32
 
 
 class DynamicParams(NamedTuple):
@@ -206,6 +213,8 @@ _INT_FIELDS = {
     "refine_iterations": (0, 20),
     "disparity_chunk": (0, 100_000),
     "lcn_radius": (1, 50),
+    "strip_rows": (0, 1_000_000),
+    "strip_overlap": (0, 10_000),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
