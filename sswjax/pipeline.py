@@ -9,15 +9,16 @@ The NumPy front door (validation, conversion, shape buckets) is :mod:`sswjax.api
 from __future__ import annotations
 
 import functools
+
 import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
+from sswjax.params import Params
 from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS
 from sswjax.stages.aggregation import SegmentTerm
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.stages.filters import side_window_median_filter
-from sswjax.params import Params
 from sswjax.stages.refinement import left_right_consistency
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
