@@ -227,7 +227,8 @@ class Preset(NamedTuple):
 PRESETS: dict[str, Preset] = {
     "paper": Preset({}, "the paper's method: SSW aggregation, winner-takes-all, LR check, fill, "
                         "side-window median"),
-    "accurate": Preset({"optimizer": "sgm", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0},
+    "accurate": Preset({"optimizer": "sgm", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0,
+                        "fill_radius": 4},
                        "side-window aggregation without the segment term, then semi-global "
                        "optimisation of the aggregated cost (4 paths)"),
 }
