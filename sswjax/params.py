@@ -208,8 +208,11 @@ _INT_FIELDS = {
     "slic_iterations": (1, 100),
     "aggregation_radius": (1, 50),
     "aggregation_iterations": (0, 20),
-    "fill_radius": (0, 20),
-    "refine_radius": (0, 20),
+    # The medians run a sorting network over every window value: kept at <= 128 inputs (the
+    # (2r + 1)^2 square of the fill, the (r + 1)(2r + 1) side windows of the refinement), as a
+    # 512-input network took over 20 GB to compile.
+    "fill_radius": (0, 5),
+    "refine_radius": (0, 7),
     "refine_iterations": (0, 20),
     "disparity_chunk": (0, 100_000),
     "lcn_radius": (1, 50),
