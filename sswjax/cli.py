@@ -208,7 +208,7 @@ def cmd_evaluate(args) -> int:
     scoring = SCORINGS[layout.scoring]
     scenes = load_scenes(root, layout=layout, split=args.split, scenes=args.scenes, ndisp=args.ndisp)
     required = [("ground_truth", layout.ground_truth or "disp0GT.pfm")]
-    required += [("mask", "mask0nocc.png")] if layout.kind == "middeval3" else []
+    required += [("mask", "mask0nocc.png")] if layout.kind in ("middeval3", "eth3d") else []
     for attribute, file in required:
         lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
         if lacking:
@@ -317,9 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(run=cmd_demo)
 
     evaluate = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
-    evaluate.add_argument("--data", type=Path, help="data folder: MiddEval3, KITTI 2012/2015 or "
-                          "Middlebury 2001/2003/2005/2006, told by its files (default: $SSWJAX_DATA, "
-                          "then ../shared/data/MiddEval3 beside the project)")
+    evaluate.add_argument("--data", type=Path, help="data folder: MiddEval3, KITTI 2012/2015, "
+                          "Middlebury 2001/2003/2005/2006 or ETH3D two-view, told by its files "
+                          "(default: $SSWJAX_DATA, then ../shared/data/MiddEval3 beside the project)")
     evaluate.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
     evaluate.add_argument("--ndisp", type=int,
                           help="disparities searched in every scene, 0..N-1 (default: calib.txt "

@@ -6,6 +6,7 @@ another one nor this file: what several files share is a fixture here.
 - ``texture``: reproducible random uint8 images.
 - ``small_pair``: a 24x40 pair with disparity 3 written in every input form, and broken files.
 - ``middeval3``: builds a MiddEval3-like data folder of three small scenes.
+- ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
 - ``run_cli``: ``sswjax.cli.main`` in process, returning ``(exit code, stdout, stderr)``.
 - ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
 """
@@ -149,3 +150,33 @@ def run_on_devices():
     """``run_on_devices(script, devices=2)``: the last stdout line of ``script`` run in a fresh
     Python process on ``devices`` simulated CPU devices, with ``tests/`` on ``sys.path``."""
     return _run_on_devices
+
+
+@pytest.fixture(scope="session")
+def write_eth3d():
+    """``write_eth3d(root, scenes=(...), shifts=(3, 5), ndisps=(32, None), gray=(True, False))``:
+    ``root/ETH3D`` as ETH3D's two archives unpack (12x40 scenes of disparity ``shifts[i]``,
+    ``inf`` left of it; the mask 255 there and 128 in the last two columns), returned.
+    ``ndisps[i]`` None writes a ``calib.txt`` without ``ndisp``."""
+
+    def write(root: Path, scenes=("delivery_area_1l", "electro_1l"), shifts=(3, 5), *,
+              ndisps=(32, None), gray=(True, False)) -> Path:
+        for i, (scene, shift) in enumerate(zip(scenes, shifts)):
+            images = root / "ETH3D" / "two_view_training" / scene
+            truth = root / "ETH3D" / "two_view_training_gt" / scene
+            images.mkdir(parents=True)
+            truth.mkdir(parents=True)
+            right = _texture(i, (12, 40) if gray[i] else (12, 40, 3))
+            iio.imwrite(images / "im0.png", np.roll(right, shift, axis=1))
+            iio.imwrite(images / "im1.png", right)
+            calib = "cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=60\n"
+            (images / "calib.txt").write_text(calib + (f"ndisp={ndisps[i]}\n" if ndisps[i] else ""))
+            gt = np.full((12, 40), float(shift), np.float32)
+            gt[:, :shift] = np.inf
+            write_pfm(truth / "disp0GT.pfm", gt)
+            mask = np.where(np.isfinite(gt), 255, 0).astype(np.uint8)
+            mask[:, -2:] = 128
+            iio.imwrite(truth / "mask0nocc.png", mask)
+        return root / "ETH3D"
+
+    return write

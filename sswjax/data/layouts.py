@@ -1,4 +1,4 @@
-"""Stereo benchmark layouts: MiddEval3, KITTI 2012/2015 and Middlebury 2001/2003/2005/2006.
+"""Stereo benchmark layouts: MiddEval3, KITTI 2012/2015, Middlebury 2001-2006 and ETH3D two-view.
 
 Every layout is one entry of :data:`LAYOUTS` and loads into the same
 :class:`~sswjax.data.datasets.StereoScene` as MiddEval3 (same array conventions):
@@ -13,15 +13,20 @@ Every layout is one entry of :data:`LAYOUTS` and loads into the same
 * ``mask``: ``uint8`` ``(H, W)``, 255 = non-occluded, 128 = occluded, 0 = unknown. KITTI's
   ``disp_noc`` holds only non-occluded pixels, so every pixel it knows is 255; when ``disp_occ``
   is there too it becomes the ground truth and the pixels only it knows are 128. The older
-  Middlebury sets have no mask (``None``): they are scored on region "all" only.
-* ``ndisp``: MiddEval3 reads it from ``calib.txt``. The other layouts have no disparity
+  Middlebury sets have no mask (``None``): they are scored on region "all" only. ETH3D's
+  ``mask0nocc.png`` is used as it is (255 = non-occluded).
+* ``ndisp``: MiddEval3 reads it from ``calib.txt``, ETH3D too when its ``calib.txt`` has an
+  ``ndisp=`` line. The other layouts have no disparity
   count, and the protocol is the smallest multiple of 8 that is >= max(ground truth) + 2
   (:func:`ndisp_from_ground_truth`): the ground truth only sizes the search range, as in our
   published figures for the peers. An explicit ``ndisp`` replaces it for every scene.
 
 Folders: KITTI is ``<root>/training/<view folder>/<frame>_10.png`` (``root`` may also be the
 ``training`` folder), scenes named by frame (``"000100"``); Middlebury is
-``<root>/<scene>/<files>``. The layout of a folder is told by its files
+``<root>/<scene>/<files>``. ETH3D two-view is what its two archives unpack to:
+``<root>/two_view_training/<scene>/{im0.png,im1.png,calib.txt}`` (gray images stored as PNG,
+one channel or RGB) beside ``<root>/two_view_training_gt/<scene>/{disp0GT.pfm,mask0nocc.png}``
+(PFM with ``inf`` = unknown); ``root`` may also be the ``two_view_training`` folder. The layout of a folder is told by its files
 (:func:`detect_layout`); layouts with the same file names (2001 and 2003; 2005 and 2006) are
 told apart by a year in the folder's name, then by their known scene names.
 """
@@ -37,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax.data.datasets import _SCENE_FILES, StereoScene, load_middeval3
-from sswjax.data.io import InputError, read_image
+from sswjax.data.datasets import _SCENE_FILES, StereoScene, load_middeval3, read_calib
+from sswjax.data.io import InputError, read_image, read_pfm
 
 __all__ = [
     "LAYOUTS",
@@ -63,7 +68,8 @@ class Layout:
     kind : str
         ``"middeval3"`` (scene folders with ``calib.txt``), ``"views"`` (one folder per view
         holding one file per scene: KITTI) or ``"scenes"`` (one folder per scene holding fixed
-        file names: Middlebury).
+        file names: Middlebury) or ``"eth3d"`` (scene folders of images in ``split`` beside
+        scene folders of ground truth in ``ground_truth_split``).
     left, right, ground_truth : str
         Folder names (``"views"``) or file names (``"scenes"``) of the left image, the right
         image and the non-occluded (or only) ground truth.
@@ -72,7 +78,12 @@ class Layout:
     scale : float or None
         Ground-truth file value per pixel of disparity; ``None``: from the image width.
     split : str or None
-        ``"views"`` only: sub-folder holding the view folders (``"training"``).
+        ``"views"``: sub-folder holding the view folders (``"training"``); ``"eth3d"``: the
+        folder of the image scene folders (``"two_view_training"``).
+    ground_truth_split : str or None
+        ``"eth3d"`` only: the folder, beside ``split``, of the ground-truth scene folders.
+    mask : str or None
+        ``"eth3d"`` only: file name of the occlusion mask in a ground-truth scene folder.
     scene_names : tuple of str
         Known scene names (lower case), to tell apart layouts with the same file names.
     offset_file : str or None
@@ -93,6 +104,8 @@ class Layout:
     scene_names: tuple[str, ...] = ()
     offset_file: str | None = None
     scoring: str = "mean"
+    ground_truth_split: str | None = None
+    mask: str | None = None
 
     @property
     def has_masks(self) -> bool:
@@ -104,6 +117,9 @@ class Layout:
         """Where the files are, for messages: ``"training/{image_0,image_1,disp_noc}"``."""
         if self.kind == "middeval3":
             return "<scene>/{" + ",".join(_SCENE_FILES) + "}"
+        if self.kind == "eth3d":
+            return (f"{self.split}/<scene>/{{{self.left},{self.right},calib.txt}} + "
+                    f"{self.ground_truth_split}/<scene>/{{{self.ground_truth},{self.mask}}}")
         names = ",".join([self.left, self.right, self.ground_truth])
         return f"{self.split}/{{{names}}}" if self.kind == "views" else f"<scene>/{{{names}}}"
 
@@ -132,6 +148,8 @@ LAYOUTS: dict[str, Layout] = {
             "aloe", "baby1", "baby2", "baby3", "bowling1", "bowling2", "cloth1", "cloth2",
             "cloth3", "cloth4", "flowerpots", "lampshade1", "lampshade2", "midd1", "midd2",
             "monopoly", "plastic", "rocks1", "rocks2", "wood1", "wood2"), **_MIDDLEBURY_2005_2006),
+        Layout("ETH3D", "eth3d", "im0.png", "im1.png", "disp0GT.pfm", split="two_view_training",
+               ground_truth_split="two_view_training_gt", mask="mask0nocc.png"),
     )
 }  # fmt: skip
 
@@ -219,7 +237,18 @@ def _scene_folders(root: Path, layout: Layout) -> list[Path]:
     return sorted(p for p in root.iterdir() if p.is_dir() and any((p / n).is_file() for n in names))
 
 
+def _eth3d_base(root: Path, layout: Layout) -> Path | None:
+    """The ``two_view_training`` folder: under ``root``, or ``root`` itself beside its GT."""
+    if (root / layout.split).is_dir():
+        return root / layout.split
+    if root.name == layout.split and (root.parent / layout.ground_truth_split).is_dir():
+        return root
+    return None
+
+
 def _matches(root: Path, layout: Layout, split: str) -> bool:
+    if layout.kind == "eth3d":
+        return _eth3d_base(root, layout) is not None
     if layout.kind == "views":
         return _views_base(root, layout) is not None
     if layout.kind == "scenes":
@@ -261,6 +290,8 @@ def detect_layout(root: str | os.PathLike, *, split: str = "trainingQ") -> Layou
     if not root.is_dir():
         return LAYOUTS["MiddEval3"]
     found = [layout for layout in LAYOUTS.values() if _matches(root, layout, split)]
+    if any(layout.kind == "eth3d" for layout in found):  # its scene folders look like MiddEval3's
+        found = [layout for layout in found if layout.kind != "middeval3"]
     if len(found) > 1:  # same file names: a year in the folder's name, then known scene names
         year = _year(root)
         by_year = [layout for layout in found if year and layout.name.endswith(year)]
@@ -325,8 +356,59 @@ def _load(name: str, left_path: Path, right_path: Path, gt_path: Path | None,
     return StereoScene(name, left, right, int(ndisp), ground_truth, mask, left_path.parent)
 
 
+def _load_eth3d(name: str, folder: Path, gt_folder: Path, layout: Layout,
+                ndisp: int | None) -> StereoScene:
+    """One ETH3D two-view scene: images and ``calib.txt`` in ``folder``, GT in ``gt_folder``."""
+    for required in (layout.left, layout.right):
+        if not (folder / required).is_file():
+            raise InputError(f"scene {name}: missing {required} in {folder}")
+    left, right = read_image(folder / layout.left), read_image(folder / layout.right)
+    if left.shape[:2] != right.shape[:2]:
+        raise InputError(f"scene {name}: {layout.left} {left.shape} and {layout.right} "
+                         f"{right.shape} differ in size")
+    ground_truth = mask = None
+    if (gt_folder / layout.ground_truth).is_file():
+        ground_truth = read_pfm(gt_folder / layout.ground_truth)
+        if ground_truth.shape != left.shape[:2]:
+            raise InputError(f"scene {name}: {layout.ground_truth} shape {ground_truth.shape} "
+                             f"does not match {layout.left} {left.shape[:2]}")
+    if (gt_folder / layout.mask).is_file():
+        mask = read_image(gt_folder / layout.mask)
+        if mask.dtype != np.uint8 or mask.shape != left.shape[:2]:
+            raise InputError(f"scene {name}: {layout.mask} must be uint8 gray {left.shape[:2]}, "
+                             f"got {mask.dtype} {mask.shape}")
+    calib = folder / "calib.txt"
+    if ndisp is None and calib.is_file() and re.search(r"(?m)^\s*ndisp\s*=", _text(calib)):
+        ndisp = read_calib(calib)["ndisp"]
+    if ndisp is None:
+        if ground_truth is None:
+            raise InputError(f"scene {name}: neither ndisp in {calib} nor ground truth in "
+                             f"{gt_folder} to size the search range; give sswjax evaluate --ndisp N")
+        try:
+            ndisp = ndisp_from_ground_truth(ground_truth)
+        except ValueError as exc:
+            raise InputError(f"scene {name}: {layout.ground_truth}: {exc}") from exc
+    return StereoScene(name, left, right, int(ndisp), ground_truth, mask, folder)
+
+
+def _text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read calibration file {path}: {exc}") from exc
+
+
 def _scene_sources(root: Path, layout: Layout) -> dict[str, tuple]:
-    """Scene name -> the arguments of :func:`_load` that locate its files."""
+    """Scene name -> the arguments of :func:`_load` (:func:`_load_eth3d` for ETH3D) that
+    locate its files."""
+    if layout.kind == "eth3d":
+        base = _eth3d_base(root, layout) if root.is_dir() else None
+        folders = [] if base is None else sorted(
+            p for p in base.iterdir()
+            if p.is_dir() and any((p / n).is_file() for n in (layout.left, layout.right)))
+        if not folders:
+            raise InputError(f"no {layout.name} scene folders {layout.files} in {root}")
+        return {p.name: (p, base.parent / layout.ground_truth_split / p.name) for p in folders}
     if layout.kind == "views":
         base = _views_base(root, layout)
         if base is None:
@@ -413,4 +495,5 @@ def load_scenes(
     if unknown:
         raise InputError(f"unknown scene(s) {', '.join(unknown)} in {root}; "
                          f"available: {', '.join(available)}")
-    return [_load(n, *available[n], layout, ndisp) for n in names]
+    load = _load_eth3d if layout.kind == "eth3d" else _load
+    return [load(n, *available[n], layout, ndisp) for n in names]

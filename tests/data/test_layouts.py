@@ -203,3 +203,28 @@ def test_real_shared_data():
     assert kitti.left.shape == kitti.ground_truth.shape == (370, 1226) and kitti.ndisp == 88
     assert ((kitti.mask == 255) == np.isfinite(kitti.ground_truth)).all()
     assert len(load_scenes(SHARED / "KITTI2012", ndisp=8)) == 30
+
+
+def test_eth3d_two_view_layout(tmp_path, write_eth3d):
+    root = write_eth3d(tmp_path)
+    assert detect_layout(root).name == "ETH3D"
+    assert detect_layout(root / "two_view_training").name == "ETH3D"  # not MiddEval3
+    scenes = load_scenes(root)
+    assert [s.name for s in scenes] == ["delivery_area_1l", "electro_1l"]
+    gray, colour = scenes
+    assert gray.left.shape == SHAPE and colour.left.shape == SHAPE + (3,)
+    assert gray.ndisp == 32 and colour.ndisp == 8  # calib.txt's ndisp; else 5 + 2 -> 8
+    assert np.isinf(colour.ground_truth[:, :5]).all() and (colour.ground_truth[:, 5:] == 5).all()
+    assert (colour.mask[:, 5:-2] == 255).all() and (colour.mask[:, -2:] == 128).all()
+    assert gray.path == root / "two_view_training" / "delivery_area_1l"
+    assert [s.ndisp for s in load_scenes(root / "two_view_training", ndisp=16)] == [16, 16]
+    (root / "two_view_training" / "electro_1l" / "calib.txt").unlink()
+    assert load_scenes(root, scenes=["electro_1l"])[0].ndisp == 8
+    (root / "two_view_training_gt" / "electro_1l" / "disp0GT.pfm").unlink()
+    with pytest.raises(InputError, match="scene electro_1l: neither ndisp in .* nor ground truth"):
+        load_scenes(root, scenes=["electro_1l"])
+    (root / "two_view_training" / "delivery_area_1l" / "im1.png").unlink()
+    with pytest.raises(InputError, match="scene delivery_area_1l: missing im1.png"):
+        load_scenes(root, scenes=["delivery_area_1l"])
+    assert "ETH3D (two_view_training/<scene>/{im0.png,im1.png,calib.txt}" in \
+        str(pytest.raises(InputError, detect_layout, tmp_path).value)

@@ -186,3 +186,17 @@ def test_evaluate_real_shared_data_with_sgbm(tmp_path, capsys):
     assert rows["nonocc"]["D1"] == rows["all"]["D1"]  # disp_noc: every known pixel is nonocc
     assert float(rows["all"]["D1"]) < 8 and float(rows["all"]["bad3.0"]) < 8  # measured 2.45, 2.46
     assert "Means over 1 KITTI2012 scenes" in capsys.readouterr().out
+
+
+def test_evaluate_eth3d_folder(tmp_path, oracle, capsys, write_eth3d):
+    root = write_eth3d(tmp_path, shifts=(3, 5), ndisps=(24, None))
+    out = tmp_path / "out"
+    assert main(["evaluate", "--data", str(root), "--methods", "ssw", "-o", str(out)]) == 0
+    assert oracle == [("ssw", 24), ("ssw", 8)]  # calib.txt's ndisp, else the rule
+    assert "Means over 2 ETH3D scenes (no weights; bad-pixel %)" in capsys.readouterr().out
+    rows = _csv(out / "metrics.csv")
+    assert {r["region"] for r in rows} == {"nonocc", "all"} and "D1" not in rows[0]
+    assert all(float(r["bad1.0"]) == 0 and float(r["bad0.5"]) == 100 for r in rows)
+    (root / "two_view_training_gt" / "electro_1l" / "mask0nocc.png").unlink()
+    assert main(["evaluate", "--data", str(root)]) == 2
+    assert "cannot score scene(s) without mask0nocc.png: electro_1l" in capsys.readouterr().err
