@@ -16,6 +16,7 @@ import numpy as np
 
 from sswjax.params import Params
 from sswjax.pipeline import ssw_disparity
+from sswjax.ranges import check_disparity_range, from_range_frame, range_frame
 
 
 class ShapeBuckets(NamedTuple):
@@ -148,7 +149,8 @@ def pad_to_bucket(left, right, height: int, width: int) -> tuple[np.ndarray, np.
 
 
 def match(
-    left, right, ndisp: int, *, params: Params | None = None, buckets: ShapeBuckets | None = None
+    left, right, ndisp: int, *, min_disp: int = 0, params: Params | None = None,
+    buckets: ShapeBuckets | None = None
 ) -> np.ndarray:
     """Dense disparity map of a rectified stereo pair with the SSW method.
 
@@ -158,6 +160,9 @@ def match(
         Rectified pair; the left image is the reference view.
     ndisp : int
         Disparities searched: 0 .. ndisp - 1 (Middlebury ``calib.txt`` ``ndisp``); 1 <= ndisp < W.
+    min_disp : int, optional
+        First disparity searched (default 0; may be negative): the range is ``min_disp ..
+        min_disp + ndisp - 1`` and must meet ``-(W - 1) .. W - 1`` (see :mod:`sswjax.ranges`).
     params : Params, optional
         Defaults to ``Params()``; see :func:`sswjax.load_params`.
     buckets : ShapeBuckets, optional
@@ -183,6 +188,9 @@ def match(
 
     params = Params() if params is None else check_params(params)
     left, right = checked_pair(left, right, ndisp, params)
+    check_disparity_range(left.shape[1], ndisp, min_disp)
+    true_width = left.shape[1]
+    left, right = range_frame(left, right, min_disp=min_disp)
     height, width = left.shape[:2]
     if buckets is None:
         run = functools.partial(ssw_disparity, params=params, ndisp=int(ndisp))
@@ -193,7 +201,7 @@ def match(
                                 valid_ndisp=jnp.int32(ndisp))
     disparity = in_strips(run, left, right, rows=params.static.strip_rows,
                           overlap=params.static.strip_overlap)
-    return disparity[:height, :width]
+    return from_range_frame(disparity[:height, :width], min_disp=min_disp, width=true_width)
 
 
 def in_strips(run, left: np.ndarray, right: np.ndarray, *, rows: int, overlap: int) -> np.ndarray:
