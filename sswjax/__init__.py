@@ -11,21 +11,27 @@ filling and side-window refinement.
 
 from sswjax.params import DynamicParams, Params, StaticParams, load_params, preset, save_params
 from sswjax.registry import PRESETS
+from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
 from sswjax.api import ShapeBuckets, match
 from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity
 
 __all__ = [
+    "Calibration",
     "DynamicParams",
     "PRESETS",
     "Params",
     "ShapeBuckets",
     "StaticParams",
     "aggregated_cost",
+    "depth_from_disparity",
     "load_params",
     "match",
+    "point_cloud",
     "preset",
+    "read_calibration",
     "save_params",
     "select_and_refine",
     "ssw_disparity",
+    "write_ply",
 ]
 __version__ = "0.1.0"

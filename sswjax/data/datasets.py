@@ -50,13 +50,16 @@ class StereoScene(NamedTuple):
     path: Path
 
 
-def read_calib(path: str | os.PathLike) -> dict[str, str | float]:
+def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[str, str | float]:
     """Parse a MiddEval3 ``calib.txt`` file of ``key=value`` lines.
 
     Parameters
     ----------
     path : str or os.PathLike
         Calibration file.
+    require_ndisp : bool
+        Refuse a file without ``ndisp`` (default; the depth tools of :mod:`sswjax.geometry`
+        read calibrations without it). A present ``ndisp`` is always checked.
 
     Returns
     -------
@@ -68,7 +71,7 @@ def read_calib(path: str | os.PathLike) -> dict[str, str | float]:
     ------
     InputError
         If the file is missing or unreadable, a line is not ``key=value``, or ``ndisp`` is
-        missing or not a positive integer.
+        missing (with ``require_ndisp``) or not a positive integer.
 
     Examples
     --------
@@ -97,6 +100,8 @@ def read_calib(path: str | os.PathLike) -> dict[str, str | float]:
         except ValueError:
             calib[key] = value
     ndisp = calib.get("ndisp")
+    if ndisp is None and not require_ndisp:
+        return calib
     if not isinstance(ndisp, float) or not ndisp.is_integer() or ndisp < 1:
         raise InputError(f"calibration file {path} needs ndisp=<positive integer>, got {ndisp!r}")
     calib["ndisp"] = int(ndisp)

@@ -52,6 +52,7 @@ __all__ = [
     "load_scenes",
     "ndisp_from_ground_truth",
     "read_scaled_disparity",
+    "write_scaled_disparity",
 ]
 
 _FRAME_SUFFIX = "_10.png"  # KITTI: the reference frame of each sequence
@@ -216,6 +217,50 @@ def read_scaled_disparity(path: str | os.PathLike, *, scale: float) -> np.ndarra
     disparity = image.astype(np.float32) / np.float32(scale)
     disparity[image == 0] = np.inf
     return disparity
+
+
+def write_scaled_disparity(path: str | os.PathLike, disparity, *, scale: float = 256.0) -> None:
+    """Atomically write a 16-bit PNG of ``round(disparity * scale)``, 0 = invalid (KITTI's format).
+
+    The inverse of :func:`read_scaled_disparity` up to the rounding (``1 / (2 * scale)`` px).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output PNG file.
+    disparity : array_like floating (H, W)
+        Pixels. Invalid, written as 0: non-finite, ``<= 0``, rounding to 0, or beyond
+        ``65535 / scale`` (255.996 px for KITTI).
+    scale : float > 0
+        File value per pixel of disparity (256 for KITTI).
+
+    Raises
+    ------
+    ValueError, TypeError
+        On a bad shape, dtype or scale.
+    InputError
+        If the file cannot be written.
+
+    Examples
+    --------
+    >>> write_scaled_disparity("000000_10.png", np.full((2, 3), 4.5, np.float32))  # doctest: +SKIP
+    """
+    import imageio.v3 as iio
+
+    from sswjax._checks import check_floating, check_rank
+    from sswjax.data.files import atomic_output
+
+    disparity = np.asarray(disparity)
+    check_rank("disparity", disparity, 2)
+    check_floating("disparity", disparity)
+    if isinstance(scale, bool) or not (isinstance(scale, (int, float)) and 0 < scale < np.inf):
+        raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
+    with np.errstate(invalid="ignore", over="ignore"):
+        scaled = np.round(disparity.astype(np.float64) * scale)
+    valid = np.isfinite(scaled) & (disparity > 0) & (scaled <= np.iinfo(np.uint16).max)
+    values = np.where(valid, scaled, 0).astype(np.uint16)
+    with atomic_output(path) as tmp:
+        iio.imwrite(tmp, values, extension=".png")
 
 
 def _year(path: Path) -> str | None:

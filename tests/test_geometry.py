@@ -1,0 +1,178 @@
+"""Depth maps, point clouds, PLY files and calibration files (``sswjax.geometry``)."""
+
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax.data.io import InputError
+from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
+
+MOTORCYCLE_CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
+cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]
+doffs=32.778
+baseline=193.001
+width=741
+height=497
+ndisp=70
+isint=0
+vmin=7
+vmax=65
+dyavg=0.23
+dymax=0.379
+"""
+
+
+def read_ply(path):
+    """A PLY reader of our own for the test: the header's vertex properties, then the records."""
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode("ascii").splitlines()
+    assert header[:2] == ["ply", "format binary_little_endian 1.0"]
+    types = {"float": "<f4", "uchar": "u1"}
+    count, fields = None, []
+    for line in header:
+        words = line.split()
+        if words[:2] == ["element", "vertex"]:
+            count = int(words[2])
+        elif words[0] == "property":
+            fields.append((words[2], types[words[1]]))
+    vertices = np.frombuffer(data, dtype=np.dtype(fields), count=count, offset=end)
+    assert end + vertices.nbytes == len(data)          # nothing after the last vertex
+    xyz = np.stack([vertices[c] for c in "xyz"], axis=-1)
+    rgb = np.stack([vertices[c] for c in ("red", "green", "blue")], axis=-1)
+    return xyz, rgb
+
+
+# A 2x2 disparity with f = 100 px, baseline 0.5 m, doffs 10 px, principal point (0.5, 0.5):
+# Z = 0.5 * 100 / (d + 10), X = (u - 0.5) Z / 100, Y = (v - 0.5) Z / 100.
+DISPARITY = np.array([[10.0, 20.0], [15.0, -10.0]], np.float32)   # d + doffs = 20, 30, 25, 0
+IMAGE = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [9, 8, 7]]], np.uint8)
+CALIB = Calibration(focal=100.0, baseline=0.5, doffs=10.0, principal=(0.5, 0.5))
+EXPECTED_XYZ = np.array([
+    [-0.5 * 2.5 / 100, -0.5 * 2.5 / 100, 2.5],                     # (v, u) = (0, 0): Z = 50 / 20
+    [0.5 * (50 / 30) / 100, -0.5 * (50 / 30) / 100, 50 / 30],      # (0, 1): Z = 50 / 30
+    [-0.5 * 2.0 / 100, 0.5 * 2.0 / 100, 2.0],                      # (1, 0): Z = 50 / 25
+])                                                                 # (1, 1): d + doffs = 0, none
+
+
+def test_depth_hand_computed():
+    depth = depth_from_disparity(DISPARITY, focal=100, baseline=0.5, doffs=10)
+    assert depth.dtype == np.float32
+    np.testing.assert_allclose(depth, [[2.5, 50 / 30], [2.0, np.inf]], rtol=1e-6)
+    edges = depth_from_disparity(np.array([[np.nan, np.inf, -np.inf, 1e-42]], np.float32),
+                                 focal=100, baseline=0.5)
+    assert edges[0, :3].tolist() == [np.inf] * 3 and edges[0, 3] == np.inf   # float32 overflow
+
+
+def test_point_cloud_and_ply_hand_computed(tmp_path):
+    cloud = point_cloud(DISPARITY, IMAGE, CALIB)
+    assert cloud.xyz.dtype == np.float32 and cloud.rgb.dtype == np.uint8
+    np.testing.assert_allclose(cloud.xyz, EXPECTED_XYZ, rtol=1e-6)
+    np.testing.assert_array_equal(cloud.rgb, IMAGE.reshape(4, 3)[:3])
+    # The image centre of a 2x2 image is (0.5, 0.5): the default principal point.
+    centred = point_cloud(DISPARITY, IMAGE, CALIB._replace(principal=None))
+    np.testing.assert_array_equal(centred.xyz, cloud.xyz)
+    write_ply(tmp_path / "cloud.ply", *cloud)
+    xyz, rgb = read_ply(tmp_path / "cloud.ply")
+    np.testing.assert_allclose(xyz, EXPECTED_XYZ, rtol=1e-6)
+    np.testing.assert_array_equal(rgb, IMAGE.reshape(4, 3)[:3])
+
+
+def test_point_cloud_colours_of_every_image_format():
+    gray16 = np.array([[0, 65535], [257, 65535]], np.uint16)
+    cloud = point_cloud(DISPARITY, gray16, CALIB)
+    np.testing.assert_array_equal(cloud.rgb, [[0, 0, 0], [255, 255, 255], [1, 1, 1]])
+    floats = point_cloud(DISPARITY, IMAGE.astype(np.float32) / 255, CALIB)
+    np.testing.assert_array_equal(floats.rgb, IMAGE.reshape(4, 3)[:3])
+    empty = point_cloud(np.full((2, 2), np.inf, np.float32), IMAGE, CALIB)
+    assert empty.xyz.shape == (0, 3) and empty.rgb.shape == (0, 3)
+
+
+def test_read_calibration_middlebury(tmp_path):
+    path = tmp_path / "calib.txt"
+    path.write_text(MOTORCYCLE_CALIB)
+    calib = read_calibration(path)
+    assert calib == Calibration(999.421, 193.001, 32.778, (294.182, 252.932))
+    path.write_text("cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=60\n")   # no ndisp, no doffs
+    assert read_calibration(path) == Calibration(500.0, 60.0, 0.0, (20.0, 6.0))
+
+
+def test_read_calibration_of_the_shared_motorcycle_scene():
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "shared/data/MiddEval3/trainingQ/Motorcycle/calib.txt"
+    if not path.is_file():
+        pytest.skip("shared MiddEval3 data not present")
+    assert read_calibration(path).focal == pytest.approx(999.421)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("baseline=60\n", "lacks cam0"),
+    ("cam0=[500 0 20; 0 500 6; 0 0 1]\n", "lacks baseline"),
+    ("doffs=1\n", "lacks cam0 and baseline"),
+    ("cam0=[500 0 20; 0 500 6]\nbaseline=60\n", r"cam0 must be \[f 0 cx; 0 f cy; 0 0 1\]"),
+    ("cam0=500\nbaseline=60\n", r"cam0 must be \[f 0 cx; 0 f cy; 0 0 1\]"),
+    ("cam0=[500 0 20; 0 400 6; 0 0 1]\nbaseline=60\n", "two focal lengths 500 and 400"),
+    ("cam0=[0 0 20; 0 0 6; 0 0 1]\nbaseline=60\n", "focal length must be > 0, got 0"),
+    ("cam0=[-5 0 20; 0 -5 6; 0 0 1]\nbaseline=60\n", "focal length must be > 0, got -5"),
+    ("cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=-60\n", "baseline must be > 0, got -60"),
+    ("cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=far\n", "baseline must be a number, got 'far'"),
+    ("cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=60\ndoffs=nan\n", "doffs must be finite"),
+    ("cam0=[500 0 20; 0 500 6; 0 0 1]\nbaseline=60\nndisp=-4\n", "needs ndisp=<positive integer>"),
+    ("cam0 [500 0 20; 0 500 6; 0 0 1]\n", "is not key=value"),
+])
+def test_read_calibration_bad_files(tmp_path, text, message):
+    path = tmp_path / "calib.txt"
+    path.write_text(text)
+    with pytest.raises(InputError, match=message) as error:
+        read_calibration(path)
+    assert str(path) in str(error.value) and "\n" not in str(error.value)
+
+
+def test_read_calibration_missing_file(tmp_path):
+    with pytest.raises(InputError, match="calibration file not found: .*nope.txt"):
+        read_calibration(tmp_path / "nope.txt")
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda: depth_from_disparity(DISPARITY, focal=0, baseline=1), ValueError,
+     "focal length must be > 0, got 0"),
+    (lambda: depth_from_disparity(DISPARITY, focal=100, baseline=-1), ValueError,
+     "baseline must be > 0, got -1"),
+    (lambda: depth_from_disparity(DISPARITY, focal=np.inf, baseline=1), ValueError,
+     "focal length must be finite"),
+    (lambda: depth_from_disparity(DISPARITY, focal=100, baseline=1, doffs=np.nan), ValueError,
+     "doffs must be finite"),
+    (lambda: depth_from_disparity(DISPARITY, focal="100", baseline=1), ValueError,
+     "focal length must be a number"),
+    (lambda: depth_from_disparity(DISPARITY[0], focal=100, baseline=1), ValueError,
+     "disparity must have rank 2"),
+    (lambda: depth_from_disparity(DISPARITY.astype(int), focal=100, baseline=1), TypeError,
+     "disparity must have a floating dtype"),
+    (lambda: point_cloud(DISPARITY, IMAGE, {"focal": 100}), TypeError,
+     "calib must be a sswjax.Calibration, got dict"),
+    (lambda: point_cloud(DISPARITY, IMAGE[:1], CALIB), ValueError,
+     "image of 2x1 and disparity of 2x2 differ in size"),
+    (lambda: point_cloud(DISPARITY, IMAGE, CALIB._replace(principal=(1.0,))), ValueError,
+     r"principal point must be \(cx, cy\)"),
+    (lambda: point_cloud(DISPARITY, IMAGE.astype(np.int32), CALIB), ValueError,
+     "image must be uint8, uint16 or float"),
+    (lambda: write_ply("x.ply", np.zeros((2, 3), np.float32), np.zeros((2, 3), np.int64)),
+     TypeError, "rgb must be uint8"),
+    (lambda: write_ply("x.ply", np.zeros((2, 2), np.float32), np.zeros((2, 2), np.uint8)),
+     ValueError, r"xyz and rgb must both be \(N, 3\)"),
+])
+def test_geometry_rejects_bad_arguments(call, error, message):
+    with pytest.raises(error, match=message):
+        call()
+
+
+def test_write_ply_into_a_missing_folder_leaves_nothing(tmp_path):
+    with pytest.raises(InputError, match="cannot write"):
+        write_ply(tmp_path / "nope" / "cloud.ply", *point_cloud(DISPARITY, IMAGE, CALIB))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_top_level_exports():
+    assert sswjax.point_cloud is point_cloud and sswjax.write_ply is write_ply
+    assert sswjax.depth_from_disparity is depth_from_disparity
