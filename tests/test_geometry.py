@@ -11,14 +11,7 @@ MOTORCYCLE_CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
 cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]
 doffs=32.778
 baseline=193.001
-width=741
-height=497
 ndisp=70
-isint=0
-vmin=7
-vmax=65
-dyavg=0.23
-dymax=0.379
 """
 
 
