@@ -49,13 +49,14 @@ def _add_parameter_options(parser, what: str) -> None:
     group.add_argument("--params", type=Path, help=f"{what} parameters from a JSON file")
 
 
-def _write_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None, ndisp: int) -> None:
+def _write_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None, ndisp: int, *,
+                   min_disp: int = 0) -> None:
     from sswjax.data.io import write_disparity_png, write_pfm
 
     if pfm is not None:
         write_pfm(pfm, disparity)
     if png is not None:
-        write_disparity_png(png, disparity, vmin=0, vmax=ndisp - 1)
+        write_disparity_png(png, disparity, vmin=min_disp, vmax=min_disp + ndisp - 1)
 
 
 def _check_output_dir(*paths: Path | None) -> None:
@@ -69,18 +70,85 @@ def _check_output_dir(*paths: Path | None) -> None:
             raise ValueError(f"output folder does not exist: {path.parent}")
 
 
+def _add_geometry_options(parser) -> None:
+    """``match``'s disparity range and the outputs beyond the map: depth, point cloud, KITTI."""
+    parser.add_argument("--min-disp", type=int, default=0, metavar="M",
+                        help="first disparity searched, may be negative: M..M+N-1 (default 0)")
+    parser.add_argument("--kitti-png", type=Path, metavar="OUT.png",
+                        help="also write KITTI's 16-bit PNG (disparity x 256, 0 = invalid)")
+    parser.add_argument("--depth", type=Path, metavar="DEPTH.pfm",
+                        help="also write the depth baseline * f / (d + doffs) as PFM (inf where "
+                             "d + doffs <= 0); needs --calib or --focal and --baseline")
+    parser.add_argument("--ply", type=Path, metavar="CLOUD.ply",
+                        help="also write the pixels of finite positive depth as a binary PLY "
+                             "point cloud with the left image's colours")
+    rig = parser.add_mutually_exclusive_group()
+    rig.add_argument("--calib", type=Path, metavar="calib.txt",
+                     help="Middlebury calibration: cam0 (focal length, principal point), "
+                          "baseline, doffs")
+    rig.add_argument("--focal", type=float, metavar="F", help="focal length in pixels")
+    parser.add_argument("--baseline", type=float, metavar="B",
+                        help="with --focal: camera distance (depth comes out in its unit)")
+    parser.add_argument("--doffs", type=float, metavar="D",
+                        help="with --focal: x-difference of the principal points (default 0)")
+    parser.add_argument("--principal", type=float, nargs=2, metavar=("CX", "CY"),
+                        help="with --focal: principal point (default: the image centre)")
+
+
+def _calibration(args):
+    """The rig of ``--calib`` or ``--focal/--baseline/...`` (None when neither is given)."""
+    from sswjax.geometry import Calibration, check_calibration, read_calibration
+
+    by_hand = [f"--{name}" for name in ("baseline", "doffs", "principal")
+               if getattr(args, name) is not None]
+    options, one = ", ".join(by_hand), len(by_hand) == 1
+    if args.calib is not None:
+        if by_hand:
+            raise ValueError(f"{options} {'goes' if one else 'go'} with --focal, not --calib "
+                             "(the file gives it)")
+        return read_calibration(args.calib)
+    if args.focal is None:
+        if by_hand:
+            raise ValueError(f"{options} {'needs' if one else 'need'} --focal")
+        if args.depth is not None or args.ply is not None:
+            raise ValueError("--depth and --ply need --calib FILE or --focal F --baseline B")
+        return None
+    if args.baseline is None:
+        raise ValueError("--focal needs --baseline")
+    principal = None if args.principal is None else tuple(args.principal)
+    return check_calibration(Calibration(args.focal, args.baseline, args.doffs or 0.0,
+                                         principal))
+
+
+def _write_geometry_outputs(args, disparity: np.ndarray, left: np.ndarray, calib) -> None:
+    """``--kitti-png``, ``--depth`` and ``--ply`` of ``match``."""
+    from sswjax.data.io import write_pfm
+    from sswjax.data.layouts import write_scaled_disparity
+    from sswjax.geometry import depth_from_disparity, point_cloud, write_ply
+
+    if args.kitti_png is not None:
+        write_scaled_disparity(args.kitti_png, disparity, scale=256)
+    if args.depth is not None:
+        write_pfm(args.depth, depth_from_disparity(disparity, focal=calib.focal,
+                                                   baseline=calib.baseline, doffs=calib.doffs))
+    if args.ply is not None:
+        write_ply(args.ply, *point_cloud(disparity, left, calib))
+
+
 def cmd_match(args) -> int:
     """``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm``."""
     import sswjax
     from sswjax.data.io import read_image
 
-    _check_output_dir(args.output, args.png)
+    _check_output_dir(args.output, args.png, args.kitti_png, args.depth, args.ply)
+    calib = _calibration(args)
     params = _params(args)
     left, right = read_image(args.left), read_image(args.right)
     start = time.perf_counter()
-    disparity = sswjax.match(left, right, args.ndisp, params=params)
+    disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params)
     seconds = time.perf_counter() - start
-    _write_outputs(disparity, args.output, args.png, args.ndisp)
+    _write_outputs(disparity, args.output, args.png, args.ndisp, min_disp=args.min_disp)
+    _write_geometry_outputs(args, disparity, left, calib)
     print(f"wrote {args.output} ({disparity.shape[1]}x{disparity.shape[0]}, {seconds:.2f} s)")
     return 0
 
@@ -305,9 +373,11 @@ def build_parser() -> argparse.ArgumentParser:
     match = commands.add_parser("match", help="disparity map of a rectified pair")
     match.add_argument("left", type=Path, help="left (reference) image")
     match.add_argument("right", type=Path, help="right image")
-    match.add_argument("--ndisp", type=int, required=True, help="disparities searched: 0..N-1")
+    match.add_argument("--ndisp", type=int, required=True,
+                       help="disparities searched: 0..N-1 (M..M+N-1 with --min-disp M)")
     match.add_argument("-o", "--output", type=Path, required=True, help="output PFM file")
     match.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
+    _add_geometry_options(match)
     _add_parameter_options(match, "the")
     match.set_defaults(run=cmd_match)
 

@@ -169,3 +169,102 @@ def test_write_ply_into_a_missing_folder_leaves_nothing(tmp_path):
 def test_top_level_exports():
     assert sswjax.point_cloud is point_cloud and sswjax.write_ply is write_ply
     assert sswjax.depth_from_disparity is depth_from_disparity
+
+
+# ----------------------------------------------------------------------------- command line
+
+def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli):
+    from sswjax.data.io import read_pfm
+
+    folder, out = small_pair.folder, tmp_path
+    code, stdout, stderr = run_cli([
+        "match", folder / "left.png", folder / "right.png", "--ndisp", small_pair.ndisp,
+        "-o", out / "d.pfm", "--depth", out / "z.pfm", "--ply", out / "c.ply",
+        "--focal", 100, "--baseline", 0.5, "--doffs", 1, "--principal", 20, 12])
+    assert code == 0, stderr
+    disparity, depth = read_pfm(out / "d.pfm"), read_pfm(out / "z.pfm")
+    np.testing.assert_array_equal(depth, depth_from_disparity(disparity, focal=100, baseline=0.5,
+                                                              doffs=1))
+    assert np.median(depth) == pytest.approx(50 / (small_pair.shift + 1), rel=1e-3)
+    xyz, rgb = read_ply(out / "c.ply")
+    import imageio.v3 as iio
+    expected = point_cloud(disparity, iio.imread(folder / "left.png"),
+                           Calibration(100.0, 0.5, 1.0, (20.0, 12.0)))
+    np.testing.assert_array_equal(xyz, expected.xyz)
+    np.testing.assert_array_equal(rgb, expected.rgb)
+    assert len(xyz) == np.isfinite(depth).sum()
+
+
+def test_cli_calib_file(small_pair, tmp_path, run_cli):
+    from sswjax.data.io import read_pfm
+
+    calib = tmp_path / "calib.txt"
+    calib.write_text("cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\ndoffs=2\nbaseline=30\n")
+    folder = small_pair.folder
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp",
+                               small_pair.ndisp, "-o", tmp_path / "d.pfm", "--calib", calib,
+                               "--depth", tmp_path / "z.pfm", "--ply", tmp_path / "c.ply"])
+    assert code == 0, stderr
+    disparity = read_pfm(tmp_path / "d.pfm")
+    np.testing.assert_array_equal(read_pfm(tmp_path / "z.pfm"),
+                                  depth_from_disparity(disparity, focal=200, baseline=30, doffs=2))
+    xyz, _ = read_ply(tmp_path / "c.ply")
+    # The principal point is the image centre: the cloud is centred on the optical axis.
+    assert abs(np.median(xyz[:, 0])) < 0.5 and abs(np.median(xyz[:, 1])) < 0.5
+
+
+GOOD_CALIB = "cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\nbaseline=30\n"
+
+
+@pytest.mark.parametrize("calib_text, options, message", [
+    (None, ["--calib", "{tmp}/nope.txt", "--ply", "{out}/c.ply"],
+     "calibration file not found: {tmp}/nope.txt"),
+    ("cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\n", ["--calib", "{calib}", "--depth", "{out}/z.pfm"],
+     "calibration file {calib} lacks baseline"),
+    ("baseline=30\n", ["--calib", "{calib}", "--depth", "{out}/z.pfm"],
+     "calibration file {calib} lacks cam0"),
+    ("cam0=[0 0 19.5; 0 0 11.5; 0 0 1]\nbaseline=30\n", ["--calib", "{calib}", "--ply", "{out}/c.ply"],
+     "calibration file {calib}: focal length must be > 0, got 0"),
+    ("cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\nbaseline=-3\n", ["--calib", "{calib}", "--ply", "{out}/c.ply"],
+     "calibration file {calib}: baseline must be > 0, got -3"),
+    (None, ["--focal", "0", "--baseline", "1", "--depth", "{out}/z.pfm"],
+     "focal length must be > 0, got 0"),
+    (None, ["--focal", "-100", "--baseline", "1", "--depth", "{out}/z.pfm"],
+     "focal length must be > 0, got -100"),
+    (None, ["--focal", "100", "--baseline", "0", "--ply", "{out}/c.ply"],
+     "baseline must be > 0, got 0"),
+    (None, ["--focal", "nan", "--baseline", "1", "--ply", "{out}/c.ply"],
+     "focal length must be finite, got nan"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--focal", "100", "--ply", "{out}/c.ply"],
+     "argument --focal: not allowed with argument --calib"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--baseline", "3", "--ply", "{out}/c.ply"],
+     "--baseline goes with --focal, not --calib (the file gives it)"),
+    (None, ["--baseline", "3", "--doffs", "1", "--depth", "{out}/z.pfm"],
+     "--baseline, --doffs need --focal"),
+    (None, ["--focal", "100", "--depth", "{out}/z.pfm"], "--focal needs --baseline"),
+    (None, ["--depth", "{out}/z.pfm"], "--depth and --ply need --calib FILE or --focal F --baseline B"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--ply", "{out}/missing/c.ply"],
+     "output folder does not exist: {out}/missing"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/missing/z.pfm"],
+     "output folder does not exist: {out}/missing"),
+    (None, ["--kitti-png", "{out}/missing/k.png"], "output folder does not exist: {out}/missing"),
+    (None, ["--kitti-png", "{out}"], "output {out} is a folder, expected a file name"),
+], ids=["calib-missing", "calib-no-baseline", "calib-no-cam0", "calib-zero-focal",
+        "calib-negative-baseline", "focal-zero", "focal-negative", "baseline-zero", "focal-nan",
+        "calib-and-focal", "calib-and-baseline", "baseline-without-focal",
+        "focal-without-baseline", "depth-without-calibration", "ply-missing-folder",
+        "depth-missing-folder", "kitti-missing-folder", "kitti-is-a-folder"])
+def test_match_geometry_bad_input(small_pair, tmp_path, run_cli, calib_text, options, message):
+    out = tmp_path / "out"
+    out.mkdir()
+    calib = tmp_path / "calib.txt"
+    if calib_text is not None:
+        calib.write_text(calib_text)
+    names = {"tmp": tmp_path, "out": out, "calib": calib}
+    folder = small_pair.folder
+    code, stdout, stderr = run_cli(["match", folder / "left.png", folder / "right.png",
+                                    "--ndisp", small_pair.ndisp, "-o", out / "d.pfm",
+                                    *(o.format(**names) for o in options)])
+    assert code == 2
+    assert stderr == f"sswjax: error: {message.format(**names)}\n"
+    assert list(out.iterdir()) == []          # nothing written, no temporary debris

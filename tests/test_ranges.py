@@ -96,3 +96,37 @@ def test_range_without_valid_disparity_is_refused(scene, min_disp, message):
 def test_the_widest_valid_ranges_are_accepted():
     check_disparity_range(60, 12, 59)      # 59 .. 70: the last column can match the first
     check_disparity_range(60, 12, -70)     # -70 .. -59
+
+
+# ----------------------------------------------------------------------------- command line
+
+def test_cli_min_disp_is_the_api(small_pair, tmp_path, run_cli):
+    import imageio.v3 as iio
+
+    from sswjax.data.io import read_pfm
+
+    folder = small_pair.folder
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp", 8,
+                               "--min-disp", -2, "-o", tmp_path / "d.pfm",
+                               "--png", tmp_path / "d.png"])
+    assert code == 0, stderr
+    disparity = read_pfm(tmp_path / "d.pfm")
+    left, right = (iio.imread(folder / name) for name in ("left.png", "right.png"))
+    np.testing.assert_array_equal(disparity, sswjax.match(left, right, 8, min_disp=-2))
+    assert disparity.min() >= -2 and disparity.max() <= 5
+    assert np.median(disparity) == pytest.approx(small_pair.shift, abs=0.05)
+
+
+@pytest.mark.parametrize("min_disp, message", [
+    ("40", "disparity range 40..47 leaves no valid disparity for an image 40 pixels wide: it must "
+           "meet -39..39"),
+    ("-47", "disparity range -47..-40 leaves no valid disparity for an image 40 pixels wide: it "
+            "must meet -39..39"),
+    ("1.5", "argument --min-disp: invalid int value: '1.5'"),
+], ids=["beyond-width", "below-minus-width", "not-an-integer"])
+def test_cli_range_bad_input(small_pair, tmp_path, run_cli, min_disp, message):
+    folder = small_pair.folder
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp", 8,
+                               f"--min-disp={min_disp}", "-o", tmp_path / "d.pfm"])
+    assert (code, stderr) == (2, f"sswjax: error: {message}\n")
+    assert list(tmp_path.iterdir()) == []

@@ -46,3 +46,18 @@ def test_kitti_png_bad_arguments(tmp_path, disparity, scale, error):
 def test_kitti_png_into_a_missing_folder(tmp_path):
     with pytest.raises(InputError, match="cannot write"):
         write_scaled_disparity(tmp_path / "no" / "d.png", np.ones((2, 2), np.float32))
+
+
+def test_cli_kitti_png(small_pair, tmp_path, run_cli):
+    from sswjax.data.io import read_pfm
+
+    folder = small_pair.folder
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp",
+                               small_pair.ndisp, "-o", tmp_path / "d.pfm",
+                               "--kitti-png", tmp_path / "000000_10.png"])
+    assert code == 0, stderr
+    disparity = read_pfm(tmp_path / "d.pfm")
+    back = read_scaled_disparity(tmp_path / "000000_10.png", scale=256)
+    valid = disparity > 0
+    np.testing.assert_allclose(back[valid], disparity[valid], atol=1 / 512)
+    assert np.isinf(back[~valid]).all()
