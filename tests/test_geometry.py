@@ -71,6 +71,15 @@ def test_point_cloud_and_ply_hand_computed(tmp_path):
     np.testing.assert_array_equal(rgb, IMAGE.reshape(4, 3)[:3])
 
 
+def test_ply_read_by_plyfile(tmp_path):
+    # An independent reader (the bench extras' plyfile) sees the same vertices.
+    plyfile = pytest.importorskip("plyfile")
+    write_ply(tmp_path / "cloud.ply", *point_cloud(DISPARITY, IMAGE, CALIB))
+    vertex = plyfile.PlyData.read(str(tmp_path / "cloud.ply"))["vertex"]
+    np.testing.assert_allclose(np.stack([vertex[c] for c in "xyz"], -1), EXPECTED_XYZ, rtol=1e-6)
+    np.testing.assert_array_equal(vertex["green"], [0, 255, 0])
+
+
 def test_point_cloud_colours_of_every_image_format():
     gray16 = np.array([[0, 65535], [257, 65535]], np.uint16)
     cloud = point_cloud(DISPARITY, gray16, CALIB)
