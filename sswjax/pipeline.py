@@ -9,6 +9,7 @@ The NumPy front door (validation, conversion, shape buckets) is :mod:`sswjax.api
 from __future__ import annotations
 
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -17,9 +18,10 @@ from sswjax._checks import check_floating, check_positive_int, check_rank, check
 from sswjax.params import Params
 from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS
 from sswjax.stages.aggregation import SegmentTerm
+from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.stages.filters import side_window_median_filter
-from sswjax.stages.refinement import left_right_consistency
+from sswjax.stages.refinement import left_right_distance
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
 
@@ -142,8 +144,12 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
 
 
-def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0) -> jax.Array:
-    """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median."""
+def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0
+            ) -> tuple[jax.Array, ConfidenceCues]:
+    """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median.
+
+    Returns the dense map and the cues of its confidence (:mod:`sswjax.stages.confidence`);
+    callers that keep only the map let ``jit`` drop the cues."""
     static = params.static
     with jax.named_scope(STAGES[4]):
         if static.subpixel:
@@ -152,18 +158,24 @@ def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: 
             )
         else:
             disparity = winners.disparity.astype(jnp.float32)
+    initial = disparity
+    failed = jnp.zeros(disparity.shape, bool)
     with jax.named_scope(STAGES[5]):
+        # The left-right check (refinement.left_right_consistency) on a distance kept for the
+        # confidence.
+        distance = left_right_distance(winners.disparity, winners.right_disparity)
         if static.lr_check:
-            valid = left_right_consistency(
-                winners.disparity, winners.right_disparity, tolerance=params.dynamic.lr_tolerance
-            )
+            valid = distance <= params.dynamic.lr_tolerance
+            failed = ~valid
             disparity = FILLS[static.fill].fn(disparity, valid, labels=labels,
                                               num_segments=num_segments, params=params)
         if static.refine_radius > 0 and static.refine_iterations > 0:
             disparity = side_window_median_filter(
                 disparity, radius=static.refine_radius, iterations=static.refine_iterations
             )
-        return jnp.clip(disparity, 0, ndisp - 1)
+        disparity = jnp.clip(disparity, 0, ndisp - 1)
+    cues = ConfidenceCues(winners.cost, winners.second, distance, initial, failed)
+    return disparity, cues
 
 
 def _fold(state: Winners, slices, first, limit) -> Winners:
@@ -194,7 +206,7 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     check_floating("cost", cost)
     ndisp = cost.shape[0]
     winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
-    return _refine(winners, params, ndisp)
+    return _refine(winners, params, ndisp)[0]
 
 
 _OUT_OF_RANGE_COST = 1e4
@@ -259,6 +271,73 @@ def ssw_disparity(
     -------
     float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
     """
+    return _match(left, right, params, ndisp, valid_ndisp)[0]
+
+
+class SSWOutputs(NamedTuple):
+    """What :func:`ssw_outputs` returns, all ``(H, W)``: the dense disparity (float32, as
+    :func:`ssw_disparity`), its confidence (float32 in [0, 1], higher = more reliable) and the
+    pixels the left-right check rejected and filled (bool)."""
+
+    disparity: jax.Array
+    confidence: jax.Array
+    lr_failed: jax.Array
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "measure"))
+def ssw_outputs(
+    left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None,
+    measure: str = DEFAULT_MEASURE,
+) -> SSWOutputs:
+    """:func:`ssw_disparity` with the confidence of each pixel, in one jitted graph.
+
+    The same graph as :func:`ssw_disparity` (which keeps only the map; ``jit`` drops the rest)
+    plus the confidence measure of :mod:`sswjax.stages.confidence` on the cues it gathers.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+    ndisp : int, 1 <= ndisp < W
+    valid_ndisp : int32 scalar, optional
+        As for :func:`ssw_disparity`.
+    measure : str
+        A key of :data:`sswjax.stages.confidence.MEASURES` (static).
+
+    Returns
+    -------
+    SSWOutputs
+        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> image = jnp.linspace(0, 1, 40 * 48).reshape(40, 48, 1) ** 2
+    >>> out = ssw_outputs(image, image, Params().replace(n_segments=8), ndisp=8)
+    >>> out.confidence.shape, str(out.confidence.dtype)
+    ((40, 48), 'float32')
+    """
+    disparity, cues = ssw_cues(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp)
+    return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp",))
+def ssw_cues(
+    left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None
+) -> tuple[jax.Array, ConfidenceCues]:
+    """The dense disparity of :func:`ssw_disparity` and the raw cues of its confidence.
+
+    For analyses that compare confidence measures on one run (``benchmarks/sparsification.py``).
+
+    Returns
+    -------
+    (float32 (H, W), ConfidenceCues)
+    """
+    return _match(left, right, params, ndisp, valid_ndisp)
+
+
+def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Array, ConfidenceCues]:
+    """The body of :func:`ssw_disparity`: the map and its confidence cues."""
     _check_pair(left, right, ndisp)
     limit = ndisp if valid_ndisp is None else valid_ndisp
     features, labels, num_segments = _features(left, right, params)

@@ -51,6 +51,33 @@ def right_cost_volume(cost: jax.Array, *, disparities: jax.Array | None = None) 
     return jax.vmap(shift_left)(padded, disparities)
 
 
+def left_right_distance(left_disparity: jax.Array, right_disparity: jax.Array) -> jax.Array:
+    """``|d_L(x) - d_R(x - round(d_L(x)))|``, ``+inf`` where ``x - round(d_L(x)) < 0``.
+
+    Parameters
+    ----------
+    left_disparity, right_disparity : float32 or int32 (H, W)
+
+    Returns
+    -------
+    float32 (H, W), pixels
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> left_right_distance(jnp.array([[1, 1, 2, 0]]), jnp.array([[1, 1, 3, 0]])).tolist()
+    [[inf, 0.0, 1.0, 0.0]]
+    """
+    check_rank("left_disparity", left_disparity, 2)
+    check_same_shape("left_disparity", left_disparity, "right_disparity", right_disparity)
+    width = left_disparity.shape[1]
+    columns = jnp.arange(width)[None, :]
+    target = columns - jnp.round(left_disparity).astype(jnp.int32)
+    matched = jnp.take_along_axis(right_disparity, jnp.clip(target, 0, width - 1), axis=1)
+    distance = jnp.abs(left_disparity.astype(jnp.float32) - matched.astype(jnp.float32))
+    return jnp.where(target >= 0, distance, jnp.inf)
+
+
 def left_right_consistency(
     left_disparity: jax.Array, right_disparity: jax.Array, *, tolerance
 ) -> jax.Array:
@@ -73,15 +100,7 @@ def left_right_consistency(
     >>> left_right_consistency(dl, dr, tolerance=0).tolist()
     [[False, True, True, False]]
     """
-    check_rank("left_disparity", left_disparity, 2)
-    check_same_shape("left_disparity", left_disparity, "right_disparity", right_disparity)
-    width = left_disparity.shape[1]
-    columns = jnp.arange(width)[None, :]
-    target = columns - jnp.round(left_disparity).astype(jnp.int32)
-    inside = target >= 0
-    matched = jnp.take_along_axis(right_disparity, jnp.clip(target, 0, width - 1), axis=1)
-    agree = jnp.abs(left_disparity.astype(jnp.float32) - matched.astype(jnp.float32)) <= tolerance
-    return inside & agree
+    return left_right_distance(left_disparity, right_disparity) <= tolerance
 
 
 def fill_background(disparity: jax.Array, valid: jax.Array) -> jax.Array:

@@ -43,7 +43,10 @@ class Winners(NamedTuple):
 
     ``disparity``/``cost``: the left view's best disparity (int32) and its cost; ``before`` and
     ``after``: the costs at ``disparity - 1`` and ``+ 1`` (for the parabola); ``right_disparity``
-    and ``right_cost``: the same minimum for the right view, ``C_R(x, d) = C(x + d, d)``.
+    and ``right_cost``: the same minimum for the right view, ``C_R(x, d) = C(x + d, d)``;
+    ``second``: the smallest cost of the left view at a disparity not adjacent to the winner
+    (``|d - disparity| > 1``), the runner-up of the confidence measures
+    (:mod:`sswjax.stages.confidence`).
     """
 
     disparity: jax.Array
@@ -52,12 +55,13 @@ class Winners(NamedTuple):
     after: jax.Array
     right_disparity: jax.Array
     right_cost: jax.Array
+    second: jax.Array
 
 
 def no_winners(shape: tuple[int, int]) -> Winners:
     """The state before any slice: every cost ``+inf``, every disparity 0."""
     zeros, inf = jnp.zeros(shape, jnp.int32), jnp.full(shape, jnp.inf, jnp.float32)
-    return Winners(zeros, inf, inf, inf, zeros, inf)
+    return Winners(zeros, inf, inf, inf, zeros, inf, inf)
 
 
 def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
@@ -69,6 +73,12 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
     taken in block coordinates ``u = x_r + first`` with static shifts, then moved to right-image
     coordinates with one dynamic shift. Ties keep the smaller disparity, as ``argmin`` does.
     ``slices[0]`` and ``slices[-1]`` are a halo, used only for ``before``/``after``.
+
+    The runner-up ``second`` needs the slices in increasing disparity over successive calls
+    (as every caller folds them): then a disparity adjacent to the winner can only be the one
+    just above it, and when a new winner ``d`` takes over, the smallest cost away from it is the
+    old winner's, or, if the old winner was ``d - 1``, the smaller of the old runner-up and the
+    old ``before`` (the cost at ``d - 2``). It is exact and costs two selects per slice.
 
     Parameters
     ----------
@@ -114,7 +124,11 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
     for k in range(1, count + 1):
         cost = planes[k]
         better = cost < s.cost
+        adjacent = first + k - 1 == s.disparity + 1
+        runner_up = jnp.where(adjacent, jnp.minimum(s.second, s.before), s.cost)
         s = s._replace(
+            second=jnp.where(better, runner_up,
+                             jnp.where(adjacent, s.second, jnp.minimum(s.second, cost))),
             disparity=jnp.where(better, first + k - 1, s.disparity).astype(jnp.int32),
             cost=jnp.where(better, cost, s.cost),
             before=jnp.where(better, planes[k - 1], s.before),

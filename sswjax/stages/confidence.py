@@ -1,0 +1,181 @@
+"""Confidence and validity of a disparity map, from what the pipeline already computed.
+
+Array conventions (whole module): maps are ``(H, W)``; costs float32 (lower is better, as the
+aggregated or optimised volume gives them); disparities float32 in pixels; confidence float32 in
+[0, 1], higher = more reliable; validity uint8 bit masks.
+
+The cues (:class:`ConfidenceCues`) come out of the running winner-takes-all fold
+(:class:`~sswjax.stages.selection.Winners`) and the refinement, at no extra pass over the volume:
+
+- ``cost`` and ``second``: the winner's cost ``c1`` and the smallest cost at a disparity not
+  adjacent to it, ``c2`` (the runner-up of the cost curve's other valleys);
+- ``lr_distance``: ``|d_L(x) - d_R(x - d_L(x))|`` in pixels of the winners of both views,
+  ``+inf`` where ``x - d_L(x) < 0`` (no pixel of the right image to compare with;
+  :func:`~sswjax.stages.refinement.left_right_distance`, what the left-right check thresholds);
+- ``initial``: the winner with its sub-pixel parabola, before filling and the median;
+- ``lr_failed``: the pixels the left-right check rejected (then filled); all False when the
+  check is off.
+
+The measures (:data:`MEASURES`) turn them into a confidence in [0, 1]:
+
+==============  ===================================================================================
+``ratio``       ``1 - c1 / c2``: the peak-ratio (PKRN, Hu & Mordohai 2012) mapped to [0, 1]; 0 for
+                two equal valleys, near 1 for a single sharp one
+``lr``          ``1 / (1 + lr_distance)``: 1 when both views agree, 0 without a match
+``agreement``   ``1 / (1 + |d - initial|)``: how much filling and the median moved the winner
+``combined``    the product of the three (the default, the best of the sparsification curves
+                in ``benchmarks/sparsification.py``: README, "Confidence and validity")
+==============  ===================================================================================
+
+Validity bits (:func:`validity_mask`; 0 = valid):
+
+- bit 0 (``LR_FAILED`` = 1): the pixel failed the left-right check and holds a filled value;
+- bit 1 (``LEFT_BAND`` = 2): ``x - d < 0`` for the final disparity ``d`` in the image's own
+  column frame: the matching right pixel would lie left of the right image;
+- bit 2 (``LOW_CONFIDENCE`` = 4): confidence below the threshold given.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from sswjax._checks import check_floating, check_rank, check_same_shape
+
+LR_FAILED = 1
+"""Validity bit 0: failed the left-right check, the value was filled."""
+LEFT_BAND = 2
+"""Validity bit 1: ``x - d < 0``, no match inside the right image."""
+LOW_CONFIDENCE = 4
+"""Validity bit 2: confidence below the threshold."""
+
+DEFAULT_MEASURE = "combined"
+DEFAULT_THRESHOLD = 0.1
+"""Default low-confidence threshold (bit 2): see the README's "Confidence and validity"."""
+
+
+class ConfidenceCues(NamedTuple):
+    """What the confidence measures read, all ``(H, W)``: see the module docstring."""
+
+    cost: jax.Array
+    second: jax.Array
+    lr_distance: jax.Array
+    initial: jax.Array
+    lr_failed: jax.Array
+
+
+def ratio_confidence(cost: jax.Array, second: jax.Array) -> jax.Array:
+    """``1 - c1 / c2`` in [0, 1]: 1 without a runner-up (``c2 = inf``), 0 when ``c2 <= c1``.
+
+    Parameters
+    ----------
+    cost, second : float32 (H, W), ``cost >= 0``
+
+    Returns
+    -------
+    float32 (H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> ratio_confidence(jnp.array([1.0, 1.0, 0.0, 2.0]), jnp.array([4.0, jnp.inf, 0.0, 2.0])).tolist()
+    [0.75, 1.0, 0.0, 0.0]
+    """
+    margin = jnp.where(second > cost, second - cost, 0.0)
+    ratio = jnp.where(jnp.isinf(second), 1.0, margin / jnp.where(second > 0, second, 1.0))
+    return jnp.clip(jnp.where(jnp.isnan(ratio), 0.0, ratio), 0.0, 1.0).astype(jnp.float32)
+
+
+def _ratio(cues: ConfidenceCues, disparity: jax.Array) -> jax.Array:
+    return ratio_confidence(cues.cost, cues.second)
+
+
+def _lr(cues: ConfidenceCues, disparity: jax.Array) -> jax.Array:
+    return 1.0 / (1.0 + cues.lr_distance)
+
+
+def _agreement(cues: ConfidenceCues, disparity: jax.Array) -> jax.Array:
+    return 1.0 / (1.0 + jnp.abs(disparity - cues.initial))
+
+
+def _combined(cues: ConfidenceCues, disparity: jax.Array) -> jax.Array:
+    return _ratio(cues, disparity) * _lr(cues, disparity) * _agreement(cues, disparity)
+
+
+MEASURES = {"ratio": _ratio, "lr": _lr, "agreement": _agreement, "combined": _combined}
+"""Confidence measures by name: ``fn(cues, disparity) -> float32 (H, W)`` in [0, 1]."""
+
+
+def confidence(cues: ConfidenceCues, disparity: jax.Array, *, measure: str = DEFAULT_MEASURE) -> jax.Array:
+    """Confidence of each pixel of the final disparity map.
+
+    Parameters
+    ----------
+    cues : ConfidenceCues
+        Each float32 (H, W) (``lr_failed`` bool).
+    disparity : float32 (H, W)
+        The final map (after filling and the median).
+    measure : str
+        A key of :data:`MEASURES`.
+
+    Returns
+    -------
+    float32 (H, W) in [0, 1], higher = more reliable.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> one = jnp.ones((1, 2))
+    >>> cues = ConfidenceCues(one, 4 * one, jnp.array([[0.0, 1.0]]), 2 * one, one > 2)
+    >>> confidence(cues, 2 * one).tolist()
+    [[0.75, 0.375]]
+    """
+    if measure not in MEASURES:
+        raise ValueError(f"unknown confidence measure {measure!r}; choose from {', '.join(MEASURES)}")
+    check_rank("disparity", disparity, 2)
+    check_floating("disparity", disparity)
+    for name, cue in zip(cues._fields, cues):
+        check_same_shape("disparity", disparity, name, cue)
+    value = MEASURES[measure](cues, disparity)
+    return jnp.clip(value, 0.0, 1.0).astype(jnp.float32)
+
+
+def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
+    """The validity bits of each pixel (0 = valid; module docstring for the bits).
+
+    The left band is judged from ``disparity`` as given, in the image's own columns: pass the
+    final map in the frame of the original image (after any offset of the range).
+
+    Parameters
+    ----------
+    disparity : float32 (H, W), pixels
+    confidence : float32 (H, W) in [0, 1]
+    lr_failed : bool (H, W)
+    threshold : float in [0, 1]
+        Confidence strictly below it sets bit 2 (0 never sets it).
+
+    Returns
+    -------
+    uint8 (H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> d = jnp.array([[2.0, 1.0, 1.0, 1.0]])
+    >>> c = jnp.array([[0.9, 0.9, 0.05, 0.9]])
+    >>> f = jnp.array([[False, False, False, True]])
+    >>> validity_mask(d, c, f, threshold=0.1).tolist()
+    [[2, 0, 4, 1]]
+    """
+    check_rank("disparity", disparity, 2)
+    check_same_shape("disparity", disparity, "confidence", confidence)
+    check_same_shape("disparity", disparity, "lr_failed", lr_failed)
+    if not 0.0 <= float(threshold) <= 1.0:
+        raise ValueError(f"low-confidence threshold must be in [0, 1], got {threshold}")
+    columns = jnp.arange(disparity.shape[1], dtype=jnp.float32)[None, :]
+    band = columns - disparity < 0
+    bits = (jnp.where(lr_failed, LR_FAILED, 0) | jnp.where(band, LEFT_BAND, 0)
+            | jnp.where(confidence < threshold, LOW_CONFIDENCE, 0))
+    return bits.astype(jnp.uint8)
