@@ -150,7 +150,7 @@ def pad_to_bucket(left, right, height: int, width: int) -> tuple[np.ndarray, np.
 
 def match(
     left, right, ndisp: int, *, min_disp: int = 0, params: Params | None = None,
-    buckets: ShapeBuckets | None = None
+    buckets: ShapeBuckets | None = None, check_memory: bool = True
 ) -> np.ndarray:
     """Dense disparity map of a rectified stereo pair with the SSW method.
 
@@ -168,6 +168,11 @@ def match(
     buckets : ShapeBuckets, optional
         Pad the pair to a bucketed shape so that pairs of nearby sizes reuse one compilation
         (results near the bottom and right borders can change slightly); default: exact shape.
+    check_memory : bool
+        Before running, compare the estimated peak memory of the call
+        (:func:`sswjax.memory.estimate_peak_bytes`) with the available memory and raise
+        :class:`sswjax.memory.MemoryEstimateError` (a ``MemoryError``) if it does not fit
+        (default); ``False`` runs without the check.
 
     Returns
     -------
@@ -192,6 +197,10 @@ def match(
     true_width = left.shape[1]
     left, right = range_frame(left, right, min_disp=min_disp)
     height, width = left.shape[:2]
+    if check_memory:
+        from sswjax.memory import check_memory as guard
+
+        guard(height, width, int(ndisp), params=params, channels=left.shape[-1], buckets=buckets)
     if buckets is None:
         run = functools.partial(ssw_disparity, params=params, ndisp=int(ndisp))
     else:

@@ -10,6 +10,7 @@ continues an interrupted run without recomputing the finished scenes.
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 import time
@@ -136,13 +137,17 @@ def _write_geometry_outputs(args, disparity: np.ndarray, left: np.ndarray, calib
 
 
 def cmd_match(args) -> int:
-    """``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm``."""
+    """``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` (folders: :mod:`sswjax.folders`)."""
     import sswjax
     from sswjax.data.io import read_image
+    from sswjax.folders import guard_pair, match_folders
 
+    if os.path.isdir(args.left) or os.path.isdir(args.right):  # never raises
+        return match_folders(args)
     _check_output_dir(args.output, args.png, args.kitti_png, args.depth, args.ply)
     calib = _calibration(args)
     params = _params(args)
+    guard_pair(args, params)
     left, right = read_image(args.left), read_image(args.right)
     start = time.perf_counter()
     disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params)
@@ -346,9 +351,17 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_download(args) -> int:
-    """``sswjax download middlebury``: fetch and unpack the Middlebury MiddEval3 archives."""
-    from sswjax.data.download import download_middeval3
+    """``sswjax download middlebury|eth3d|kitti``: fetch and unpack a data set's archives
+    (KITTI: a one-line message on how to get it, exit 2)."""
+    from sswjax.data import download
 
+    if args.dataset == "kitti":
+        raise ValueError(download.KITTI_HOWTO.replace("DIR", str(args.dest)))
+    if args.dataset == "eth3d":
+        root = download.download_eth3d(args.dest, keep_archives=args.keep_archives)
+        print(f"ETH3D two-view ready in {root}; evaluate with: sswjax evaluate --data {root}")
+        return 0
+    download_middeval3 = download.download_middeval3
     root = download_middeval3(args.dest, resolution=args.resolution, keep_archives=args.keep_archives)
     print(f"MiddEval3 {args.resolution} ready in {root}; evaluate with: sswjax evaluate --data {root}")
     return 0
@@ -371,11 +384,19 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     match = commands.add_parser("match", help="disparity map of a rectified pair")
-    match.add_argument("left", type=Path, help="left (reference) image")
-    match.add_argument("right", type=Path, help="right image")
+    match.add_argument("left", type=Path, help="left (reference) image, or a folder of them")
+    match.add_argument("right", type=Path, help="right image, or a folder (pairs: same names)")
     match.add_argument("--ndisp", type=int, required=True,
                        help="disparities searched: 0..N-1 (M..M+N-1 with --min-disp M)")
-    match.add_argument("-o", "--output", type=Path, required=True, help="output PFM file")
+    match.add_argument("-o", "--output", type=Path, required=True,
+                       help="output PFM file (folders: the folder of <name>.pfm, created)")
+    match.add_argument("--max-memory", type=_gigabytes, metavar="GB",
+                       help="refuse to run if the estimated peak memory exceeds GB (the memory "
+                            "available is always a limit)")
+    match.add_argument("--resume", action="store_true",
+                       help="folders: keep the maps already in OUT_DIR, match the others")
+    match.add_argument("--bucket", action="store_true",
+                       help="folders: pad pairs to a few bucketed shapes (fewer compilations)")
     match.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
     _add_geometry_options(match)
     _add_parameter_options(match, "the")
@@ -412,12 +433,25 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.set_defaults(run=cmd_evaluate)
 
     download = commands.add_parser("download", help="download a stereo dataset")
-    download.add_argument("dataset", choices=["middlebury"], help="dataset (MiddEval3)")
+    download.add_argument("dataset", choices=["middlebury", "eth3d", "kitti"],
+                          help="middlebury (MiddEval3), eth3d (two-view training, needs py7zr); "
+                               "kitti needs a registration: says where to get it")
     download.add_argument("--resolution", choices=["Q", "H", "F"], default="Q")
     download.add_argument("--dest", type=Path, default=Path("data"), help="folder to fill (data)")
-    download.add_argument("--keep-archives", action="store_true", help="keep the zip files")
+    download.add_argument("--keep-archives", action="store_true", help="keep the archives")
     download.set_defaults(run=cmd_download)
     return parser
+
+
+def _gigabytes(text: str) -> float:
+    """``--max-memory`` value: a finite number of GB > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a number of GB > 0, got {text!r}")
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -426,13 +460,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv
+    from sswjax.memory import MemoryEstimateError
     if not args.no_cache:
         from sswjax.compilation import enable_compilation_cache
 
         enable_compilation_cache()
     try:
         return args.run(args)
-    except (ValueError, TypeError, OSError) as error:
+    except (ValueError, TypeError, OSError, MemoryEstimateError) as error:
         if args.debug:
             raise
         from sswjax.data.io import first_line

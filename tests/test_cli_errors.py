@@ -42,7 +42,8 @@ def _assert_one_line_error(code, err, message):
     "left, right, extra, message",
     [
         ("missing.png", "right.png", [], "image not found: {d}/missing.png"),
-        ("left.png", "folder.png", [], "cannot read image {d}/folder.png: Is a directory"),
+        ("left.png", "folder.png", [], "LEFT and RIGHT must be two image files or two folders: "
+                                       "{d}/folder.png is a folder, {d}/left.png is not"),
         ("left.png", "empty.png", [], "cannot read image {d}/empty.png: the file is empty"),
         ("random.png", "right.png", [], "cannot read image {d}/random.png: not an image file"),
         ("left.png", "truncated.png", [], "cannot read image {d}/truncated.png: the file is truncated"),

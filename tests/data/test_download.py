@@ -326,3 +326,63 @@ def test_cli_download(server, tmp_path, monkeypatch, capsys):
     errors = [line for line in err.splitlines() if line.startswith("sswjax:")]
     assert len(errors) == 1 and re.fullmatch(r"sswjax: error: cannot download http://127\.0\.0\.1:"
                                              r"\d+/MiddEval3-data-Q\.zip: .+", errors[0])  # fmt: skip
+
+
+# ----------------------------------------------------------------------------- ETH3D, KITTI
+
+
+def build_eth3d_archives(folder: Path, tmp: Path) -> None:
+    """Fake two_view_training.7z (scene folders at its top) and two_view_training_gt.7z (in a
+    top folder of its name): both packings unpack to ETH3D's layout."""
+    py7zr = pytest.importorskip("py7zr")
+    rng = np.random.default_rng(1)
+    images, truth = tmp / "eth-images", tmp / "eth-gt"
+    for scene in ("delivery_area_1l", "playground_2l"):
+        (images / scene).mkdir(parents=True)
+        (truth / scene).mkdir(parents=True)
+        for name in ("im0.png", "im1.png"):
+            iio.imwrite(images / scene / name, rng.integers(0, 256, SHAPE, dtype=np.uint8))
+        (images / scene / "calib.txt").write_text(CALIB)
+        write_pfm(truth / scene / "disp0GT.pfm", rng.uniform(0, 15, SHAPE).astype(np.float32))
+        iio.imwrite(truth / scene / "mask0nocc.png", np.full(SHAPE, 255, np.uint8))
+    for archive, source in (("two_view_training.7z", images), ("two_view_training_gt.7z", truth)):
+        with py7zr.SevenZipFile(folder / archive, "w") as sz:
+            top = "two_view_training_gt/" if archive.endswith("_gt.7z") else ""
+            for scene in sorted(p.name for p in source.iterdir()):
+                sz.writeall(source / scene, top + scene)
+
+
+def test_download_eth3d_end_to_end(server, tmp_path):
+    from sswjax.data.layouts import detect_layout, load_scenes
+
+    build_eth3d_archives(server.root, tmp_path)
+    root = download.download_eth3d(tmp_path / "data", base_url=server.url, progress=False)
+    assert root == tmp_path / "data" / "ETH3D" and len(server.requests) == 2
+    assert detect_layout(root).name == "ETH3D"
+    scenes = load_scenes(root)
+    assert [s.name for s in scenes] == ["delivery_area_1l", "playground_2l"]
+    assert all(s.ndisp == 16 and s.mask is not None and s.left.shape == SHAPE for s in scenes)
+    assert not list(root.glob("*.7z")) and not list(root.glob(".extract-*"))
+    download.download_eth3d(tmp_path / "data", base_url=server.url, progress=False)
+    assert len(server.requests) == 2  # everything in place: nothing fetched
+
+
+def test_download_eth3d_without_py7zr_says_so(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "py7zr", None)
+    with pytest.raises(InputError, match=r"ETH3D's archives are 7z: install py7zr first"):
+        download.download_eth3d(tmp_path, base_url="http://127.0.0.1:9/")
+    assert not (tmp_path / "ETH3D").exists() or not any((tmp_path / "ETH3D").iterdir())
+
+
+def test_cli_download_kitti_and_eth3d(server, tmp_path, monkeypatch, capsys):
+    assert cli.main(["--no-cache", "download", "kitti", "--dest", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "KITTI needs a registration at https://www.cvlibs.net" in err
+    assert f"{tmp_path / 'd'}/KITTI2012/training/image_0" in err and not (tmp_path / "d").exists()
+    real = download.download_eth3d
+    monkeypatch.setattr(download, "download_eth3d",
+                        functools.partial(real, base_url=_closed_port_url(), progress=False))
+    assert cli.main(["--no-cache", "download", "eth3d", "--dest", str(tmp_path / "e")]) == 2
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert re.fullmatch(r"sswjax: error: cannot download http://127\.0\.0\.1:\d+/"
+                        r"two_view_training\.7z: .+", line)

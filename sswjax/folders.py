@@ -1,0 +1,225 @@
+"""``sswjax match`` on folders, and the memory guard of ``sswjax match``, from image headers.
+
+``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR`` pairs the image files of the same name
+in both folders and writes ``OUT_DIR/<stem>.pfm`` for each. Everything that can fail on the
+user's input is checked before the first pair runs, from the files' headers: the folders,
+the names, each pair's sizes, ``ndisp`` against every width, the output folder, and the memory
+estimate of the largest shape (:mod:`sswjax.memory`). Pairs run sorted by shape (the bucketed
+shape with ``--bucket``), so each shape compiles once; each map is written atomically as soon
+as it is done, so Ctrl-C keeps the finished ones and ``--resume`` skips them.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+from typing import NamedTuple
+
+from sswjax.data.files import InputError
+
+__all__ = ["IMAGE_SUFFIXES", "FolderPair", "folder_pairs", "guard_memory", "image_size",
+           "match_folders"]
+
+IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".ppm", ".pgm", ".pbm", ".pnm", ".bmp",
+                            ".tif", ".tiff", ".webp"})
+"""File name endings taken as images in a folder (any case); other files are ignored."""
+
+_SINGLE_OUTPUTS = ("png", "confidence", "validity", "depth", "ply", "kitti_png")
+"""``sswjax match`` options that name one output file (refused with folders)."""
+
+
+class FolderPair(NamedTuple):
+    """One pair of a folder run: its file name, files and size ``(height, width, channels)``."""
+
+    name: str
+    left: Path
+    right: Path
+    size: tuple[int, int, int]
+
+
+def image_size(path: str | Path) -> tuple[int, int, int]:
+    """``(height, width, channels)`` of an image from its header; channels 1 (gray) or 3.
+
+    Pillow reads only the header; a file it cannot open is read whole by
+    :func:`sswjax.data.io.read_image`, which raises its one-line ``InputError``.
+
+    Examples
+    --------
+    >>> image_size("Motorcycle/im0.png")                # doctest: +SKIP
+    (497, 741, 3)
+    """
+    from PIL import Image
+
+    try:
+        with Image.open(path) as image:
+            width, height = image.size
+            gray = image.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F")
+            return height, width, 1 if gray else 3
+    except Exception:  # noqa: BLE001 (any failure: read_image gives the message)
+        from sswjax.data.io import read_image
+
+        image = read_image(path)
+        return image.shape[0], image.shape[1], 1 if image.ndim == 2 else 3
+
+
+def guard_memory(sizes, ndisp: int, *, params, limit_gb: float | None = None, min_disp: int = 0,
+                 buckets=None) -> int:
+    """Raise :class:`sswjax.memory.MemoryEstimateError` unless the largest of ``sizes`` fits.
+
+    Parameters
+    ----------
+    sizes : iterable of (height, width, channels)
+    ndisp, min_disp : int
+        The search range (a negative ``min_disp`` widens the matched frame by ``-min_disp``).
+    params : Params
+    limit_gb : float, optional
+        ``--max-memory`` in GB (1e9 bytes); the available memory applies as well.
+    buckets : ShapeBuckets, optional
+
+    Returns
+    -------
+    int, the largest estimate in bytes.
+    """
+    from sswjax.memory import check_memory, estimate_peak_bytes
+
+    pad = max(-int(min_disp), 0)
+    shapes = {(h, w + pad, c) for h, w, c in sizes}
+    largest = max(shapes, key=lambda s: estimate_peak_bytes(s[0], s[1], ndisp, params=params,
+                                                            channels=s[2], buckets=buckets))
+    limit = None if limit_gb is None else limit_gb * 1e9
+    return check_memory(largest[0], largest[1], ndisp, params=params, channels=largest[2],
+                        buckets=buckets, limit=limit)
+
+
+def _images(folder: Path) -> dict[str, Path]:
+    return {p.name: p for p in sorted(folder.iterdir())
+            if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".") and p.is_file()}
+
+
+def folder_pairs(left_dir: str | Path, right_dir: str | Path) -> list[FolderPair]:
+    """The image files of the same name in both folders, with their sizes, sorted by name.
+
+    Raises
+    ------
+    InputError
+        If no name is common to both, two common names share a stem (their outputs would
+        collide), or a pair's images differ in size (one line each).
+
+    Examples
+    --------
+    >>> [p.name for p in folder_pairs("left", "right")]  # doctest: +SKIP
+    ['a.png', 'b.png']
+    """
+    left_dir, right_dir = Path(left_dir), Path(right_dir)
+    lefts, rights = _images(left_dir), _images(right_dir)
+    names = [name for name in lefts if name in rights]
+    if not names:
+        raise InputError(f"no image file names in common between {left_dir} ({len(lefts)} "
+                         f"images) and {right_dir} ({len(rights)} images)")
+    stems = Counter(Path(name).stem for name in names)
+    clash = sorted(name for name in names if stems[Path(name).stem] > 1)
+    if clash:
+        raise InputError(f"images {', '.join(clash)} in {left_dir} would write the same "
+                         f"{Path(clash[0]).stem}.pfm: rename one")
+    pairs = []
+    for name in names:
+        left, right = image_size(lefts[name]), image_size(rights[name])
+        if left[:2] != right[:2]:
+            raise InputError(f"pair {name}: left {left[1]}x{left[0]} and right "
+                             f"{right[1]}x{right[0]} differ in size")
+        pairs.append(FolderPair(name, lefts[name], rights[name],
+                                (left[0], left[1], max(left[2], right[2]))))
+    return pairs
+
+
+def _finished(path: Path, size) -> bool:
+    """Whether ``path`` holds a readable PFM of the pair's size (what ``--resume`` keeps)."""
+    from sswjax.data.io import read_pfm
+
+    if not path.is_file():
+        return False
+    try:
+        return read_pfm(path).shape == tuple(size[:2])
+    except (InputError, OSError):
+        return False
+
+
+def match_folders(args) -> int:
+    """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket]``."""
+    from tqdm import tqdm
+
+    import sswjax
+    from sswjax.api import ShapeBuckets, bucket_shape
+    from sswjax.cli import Interrupted, _params, _resume_command
+    from sswjax.data.io import read_image, write_pfm
+
+    if os.path.isdir(args.left) != os.path.isdir(args.right):
+        folder, other = (args.left, args.right) if os.path.isdir(args.left) else (args.right, args.left)
+        raise InputError(f"LEFT and RIGHT must be two image files or two folders: {folder} is a "
+                         f"folder, {other} is not")
+    given = [f"--{name.replace('_', '-')}" for name in _SINGLE_OUTPUTS
+             if getattr(args, name, None) is not None]
+    if given:
+        raise ValueError(f"{given[0]} names one file: with folders only -o OUT_DIR is written")
+    out = args.output
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"output {out} is a file: with folders -o names a folder")
+    if not out.parent.is_dir():
+        raise ValueError(f"output folder does not exist: {out.parent}")
+    params = _params(args)
+    min_disp = getattr(args, "min_disp", 0) or 0
+    pairs = folder_pairs(args.left, args.right)
+    narrowest = min(pairs, key=lambda p: p.size[1])
+    if min_disp == 0 and not 1 <= args.ndisp < narrowest.size[1]:
+        raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
+                         f"{narrowest.name}, got {args.ndisp}")
+    buckets = ShapeBuckets() if args.bucket else None
+    guard_memory([p.size for p in pairs], args.ndisp, params=params, limit_gb=args.max_memory,
+                 min_disp=min_disp, buckets=buckets)
+
+    def shape(pair):
+        height, width = pair.size[:2]
+        return (bucket_shape(height, width, args.ndisp, buckets) if buckets else (height, width),
+                pair.name)
+
+    pairs.sort(key=shape)
+    out.mkdir(exist_ok=True)
+    targets = [out / f"{Path(p.name).stem}.pfm" for p in pairs]
+    done = [bool(args.resume) and _finished(t, p.size) for p, t in zip(pairs, targets)]
+    kwargs = {"min_disp": min_disp} if min_disp else {}
+    start, resumed = time.perf_counter(), sum(done)
+    try:
+        with tqdm(total=len(pairs), initial=resumed, desc="pairs", unit="pair",
+                  file=sys.stderr) as bar:
+            for i, (pair, target) in enumerate(zip(pairs, targets)):
+                if done[i]:
+                    continue
+                bar.set_postfix_str(pair.name)
+                left, right = read_image(pair.left), read_image(pair.right)
+                disparity = sswjax.match(left, right, args.ndisp, params=params, buckets=buckets,
+                                         check_memory=False, **kwargs)
+                write_pfm(target, disparity)
+                done[i] = True
+                bar.update(1)
+    except KeyboardInterrupt:
+        raise Interrupted(f"interrupted; {sum(done)} of {len(pairs)} disparity maps are saved in "
+                          f"{out}; continue with: "
+                          f"{_resume_command(getattr(args, 'argv', sys.argv[1:]))}") from None
+    note = f", {resumed} kept from before" if resumed else ""
+    print(f"wrote {len(pairs) - resumed} disparity maps to {out}{note} "
+          f"({len({shape(p)[0] for p in pairs})} shapes, {time.perf_counter() - start:.1f} s)")
+    return 0
+
+
+def guard_pair(args, params) -> None:
+    """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
+    is for folders; the memory estimate of the pair (sizes from the headers) must fit."""
+    if args.resume:
+        raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
+    left, right = image_size(args.left), image_size(args.right)
+    if left[:2] == right[:2] and args.ndisp >= 1:  # else sswjax.match reports the problem
+        guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
+                     limit_gb=args.max_memory, min_disp=getattr(args, "min_disp", 0) or 0)

@@ -1,0 +1,155 @@
+"""``sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR``: pairs by name, grouped by shape, atomic
+outputs, ``--resume``, Ctrl-C, and the bad folders."""
+
+from __future__ import annotations
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax.data.io import read_pfm, write_pfm
+from sswjax.folders import folder_pairs, image_size
+
+SIZES = {"b.png": (24, 40), "a.png": (30, 48), "c.png": (24, 40)}  # two shapes
+SHIFT = 3
+
+
+@pytest.fixture()
+def folders(tmp_path, texture):
+    """``L/`` and ``R/`` with the pairs of ``SIZES`` (disparity 3), a stray text file, and an
+    image only in ``L/``."""
+    left, right = tmp_path / "L", tmp_path / "R"
+    left.mkdir()
+    right.mkdir()
+    for seed, (name, (height, width)) in enumerate(SIZES.items()):
+        image = texture(seed, (height, width, 3))
+        iio.imwrite(left / name, np.roll(image, SHIFT, axis=1))
+        iio.imwrite(right / name, image)
+    (left / "notes.txt").write_text("not an image")
+    iio.imwrite(left / "only-left.png", texture(9, (24, 40, 3)))
+    return left, right
+
+
+@pytest.fixture()
+def fake_match(monkeypatch):
+    """``sswjax.match`` replaced by a recorder returning the pair's width as disparity; the
+    call ``fail_at`` (if set) raises KeyboardInterrupt."""
+    calls = []
+
+    def match(left, right, ndisp, **kwargs):
+        calls.append((left.shape[:2], kwargs.get("buckets")))
+        if len(calls) == fake.fail_at:
+            raise KeyboardInterrupt
+        return np.full(left.shape[:2], float(left.shape[1]), np.float32)
+
+    class Fake:
+        fail_at = None
+
+    fake = Fake()
+    fake.calls = calls
+    monkeypatch.setattr(sswjax, "match", match)
+    return fake
+
+
+def test_pairs_by_name_sorted_by_shape_then_resume(folders, tmp_path, run_cli, fake_match):
+    left, right = folders
+    out = tmp_path / "out"
+    code, stdout, stderr = run_cli(["match", left, right, "--ndisp", 8, "-o", out])
+    assert code == 0, stderr
+    # b and c (24x40) run together, then a (30x48): one compilation per shape
+    assert [shape for shape, _ in fake_match.calls] == [(24, 40), (24, 40), (30, 48)]
+    assert sorted(p.name for p in out.iterdir()) == ["a.pfm", "b.pfm", "c.pfm"]
+    assert read_pfm(out / "a.pfm").shape == (30, 48) and read_pfm(out / "a.pfm")[0, 0] == 48
+    assert "wrote 3 disparity maps to" in stdout and "(2 shapes" in stdout and "pairs" in stderr
+    write_pfm(out / "c.pfm", np.zeros((2, 2), np.float32))  # damaged: wrong size
+    fake_match.calls.clear()
+    code, stdout, _ = run_cli(["match", left, right, "--ndisp", 8, "-o", out, "--resume"])
+    assert code == 0 and [shape for shape, _ in fake_match.calls] == [(24, 40)]
+    assert read_pfm(out / "c.pfm").shape == (24, 40) and "2 kept from before" in stdout
+
+
+def test_bucket_groups_by_bucketed_shape(folders, tmp_path, run_cli, fake_match):
+    left, right = folders
+    assert run_cli(["match", left, right, "--ndisp", 8, "-o", tmp_path / "o", "--bucket"])[0] == 0
+    assert all(buckets == sswjax.ShapeBuckets() for _, buckets in fake_match.calls)
+    assert [shape for shape, _ in fake_match.calls] == [(30, 48), (24, 40), (24, 40)]  # by name
+
+
+def test_ctrl_c_keeps_finished_maps_and_says_how_to_resume(folders, tmp_path, run_cli, fake_match):
+    left, right = folders
+    out = tmp_path / "out"
+    fake_match.fail_at = 2
+    code, _, stderr = run_cli(["match", left, right, "--ndisp", 8, "-o", out])
+    assert code == 130
+    assert [p.name for p in out.iterdir()] == ["b.pfm"]  # finished, nothing half-written
+    message = stderr.strip().splitlines()[-1]
+    assert message.startswith(f"sswjax: interrupted; 1 of 3 disparity maps are saved in {out}")
+    assert message.endswith(f"-o {out} --resume")
+
+
+def test_real_matching_equals_the_single_pair_command(folders, tmp_path, run_cli):
+    left, right = folders
+    params = tmp_path / "cheap.json"
+    params.write_text('{"n_segments": 0, "aggregation_iterations": 1, "refine_iterations": 1}')
+    out = tmp_path / "out"
+    assert run_cli(["match", left, right, "--ndisp", 8, "-o", out, "--params", params])[0] == 0
+    single = tmp_path / "b.pfm"
+    assert run_cli(["match", left / "b.png", right / "b.png", "--ndisp", 8, "-o", single,
+                    "--params", params])[0] == 0
+    assert read_pfm(out / "b.pfm").tobytes() == read_pfm(single).tobytes()
+    assert np.median(read_pfm(out / "a.pfm")[:, 8:]) == pytest.approx(SHIFT, abs=0.05)
+
+
+@pytest.mark.parametrize("case", ["file-and-folder", "folder-and-file", "no-common-names",
+                                  "sizes-differ", "stem-clash", "ndisp-too-large", "output-is-file",
+                                  "png-with-folders", "memory"])
+def test_bad_folders_one_line_exit_2_nothing_written(folders, tmp_path, run_cli, texture, case):
+    left, right = folders
+    out = tmp_path / "out"
+    argv = ["match", left, right, "--ndisp", 8, "-o", out]
+    expected = {
+        "file-and-folder": f"LEFT and RIGHT must be two image files or two folders: {right} is a "
+                           f"folder, {left / 'a.png'} is not",
+        "folder-and-file": f"LEFT and RIGHT must be two image files or two folders: {left} is a "
+                           f"folder, {right / 'a.png'} is not",
+        "no-common-names": "no image file names in common between",
+        "sizes-differ": "pair c.png: left 40x24 and right 41x24 differ in size",
+        "stem-clash": f"images c.jpg, c.png in {left} would write the same c.pfm: rename one",
+        "ndisp-too-large": "ndisp must be in [1, 39] for the narrowest pair b.png, got 40",
+        "output-is-file": f"output {out} is a file: with folders -o names a folder",
+        "png-with-folders": "--png names one file: with folders only -o OUT_DIR is written",
+        "memory": "needs about",
+    }[case]
+    if case == "file-and-folder":
+        argv[1] = left / "a.png"
+    elif case == "folder-and-file":
+        argv[2] = right / "a.png"
+    elif case == "no-common-names":
+        for path in right.iterdir():
+            path.rename(right / f"x-{path.name}")
+    elif case == "sizes-differ":
+        iio.imwrite(right / "c.png", texture(5, (24, 41, 3)))
+    elif case == "stem-clash":
+        for folder in (left, right):
+            iio.imwrite(folder / "c.jpg", texture(5, (24, 40, 3)))
+    elif case == "ndisp-too-large":
+        argv[4] = 40
+    elif case == "output-is-file":
+        out.write_text("a file")
+    elif case == "png-with-folders":
+        argv += ["--png", tmp_path / "x.png"]
+    elif case == "memory":
+        argv += ["--max-memory", "0.1"]
+    code, stdout, stderr = run_cli(argv)
+    assert code == 2 and stdout == ""
+    assert stderr.count("\n") == 1 and stderr.startswith("sswjax: error: ") and expected in stderr
+    assert not out.is_dir() or not any(out.iterdir())
+
+
+def test_image_size_reads_headers(folders, tmp_path, texture):
+    left, _ = folders
+    assert image_size(left / "a.png") == (30, 48, 3)
+    iio.imwrite(tmp_path / "g.png", texture(1, (5, 7)))
+    assert image_size(tmp_path / "g.png") == (5, 7, 1)
+    assert [p.name for p in folder_pairs(*folders)] == ["a.png", "b.png", "c.png"]

@@ -1,0 +1,109 @@
+"""The memory guard: the estimate against measured peaks, free memory, refusals (API and CLI)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax import memory
+from sswjax.memory import MemoryEstimateError, available_bytes, check_memory, estimate_peak_bytes
+
+MEASURE = r"""
+import json, resource, sys
+import numpy as np
+import sswjax
+height, width, ndisp, preset = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+right = (np.random.default_rng(0).random((height, width, 3)) * 255).astype(np.uint8)
+sswjax.match(np.roll(right, 5, axis=1), right, ndisp, params=sswjax.preset(preset))
+print(json.dumps(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024))
+"""
+
+
+@pytest.mark.parametrize("preset, height, width, ndisp", [("paper", 200, 320, 48),
+                                                          ("accurate", 300, 420, 128)])
+def test_estimate_is_above_the_measured_peak_within_the_stated_margin(preset, height, width, ndisp):
+    # sizes the fit never saw (measured 0.45 and 0.97 GB here)
+    run = subprocess.run([sys.executable, "-c", MEASURE, str(height), str(width), str(ndisp), preset],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    peak = json.loads(run.stdout.strip().splitlines()[-1])
+    estimate = estimate_peak_bytes(height, width, ndisp, params=sswjax.preset(preset))
+    assert peak <= estimate <= memory.STATED_RATIO * peak, (peak, estimate)
+
+
+def test_estimate_follows_the_parameters():
+    accurate = sswjax.preset("accurate")
+    whole = estimate_peak_bytes(1988, 2964, 280, params=accurate)
+    strips = estimate_peak_bytes(1988, 2964, 280, params=accurate.replace(strip_rows=64))
+    assert strips < whole / 3
+    paper = sswjax.Params()
+    assert estimate_peak_bytes(497, 741, 70, params=paper.replace(disparity_chunk=0)) > \
+        estimate_peak_bytes(497, 741, 70, params=paper)
+    assert estimate_peak_bytes(497, 741, 70, params=paper.replace(n_segments=0)) < \
+        estimate_peak_bytes(497, 741, 70, params=paper)
+    assert estimate_peak_bytes(497, 741, 70, buckets=sswjax.ShapeBuckets()) > \
+        estimate_peak_bytes(497, 741, 70)
+    assert estimate_peak_bytes(497, 741, 70, channels=1) < estimate_peak_bytes(497, 741, 70)
+    with pytest.raises(ValueError, match="ndisp must be a positive integer, got 0"):
+        estimate_peak_bytes(10, 10, 0)
+    with pytest.raises(ValueError, match="channels must be 1 or 3"):
+        estimate_peak_bytes(10, 10, 4, channels=4)
+
+
+def test_available_bytes_reads_meminfo_and_the_cgroup(tmp_path):
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:       24000000 kB\nMemAvailable:    2000000 kB\n")
+    cgroup = tmp_path / "cgroup"
+    cgroup.mkdir()
+    assert available_bytes(meminfo=meminfo, cgroup=cgroup) == 2_048_000_000
+    (cgroup / "memory.max").write_text("1000000000\n")
+    (cgroup / "memory.current").write_text("400000000\n")
+    assert available_bytes(meminfo=meminfo, cgroup=cgroup) == 600_000_000
+    (cgroup / "memory.max").write_text("max\n")
+    assert available_bytes(meminfo=meminfo, cgroup=cgroup) == 2_048_000_000
+    assert available_bytes(meminfo=tmp_path / "absent", cgroup=tmp_path / "absent") is None
+
+
+def test_check_memory_says_what_to_change():
+    accurate = sswjax.preset("accurate")
+    estimate = estimate_peak_bytes(1988, 2964, 280, params=accurate)
+    with pytest.raises(MemoryEstimateError) as error:
+        check_memory(1988, 2964, 280, params=accurate, limit=4.5e9)
+    message = str(error.value)
+    assert "\n" not in message and f"needs about {estimate / 1e9:.2f} GB" in message
+    assert "more than the limit (4.50 GB)" in message and '"strip_rows": ' in message
+    assert isinstance(error.value, MemoryError) and error.value.estimate == estimate
+    rows = int(message.split('"strip_rows": ')[1].split()[0])
+    assert estimate_peak_bytes(1988, 2964, 280, params=accurate.replace(strip_rows=rows)) <= 4.5e9
+    with pytest.raises(MemoryEstimateError, match="a smaller ndisp or image"):
+        check_memory(1988, 2964, 280, params=accurate, limit=1e8)
+
+
+def test_api_refuses_what_does_not_fit_unless_told(monkeypatch, texture):
+    right = texture(0)
+    left = np.roll(right, 3, axis=1)
+    monkeypatch.setattr(memory, "available_bytes", lambda: 10**8)
+    with pytest.raises(MemoryEstimateError, match="more than the available memory"):
+        sswjax.match(left, right, 8)
+    assert sswjax.match(left, right, 8, check_memory=False).shape == left.shape[:2]
+
+
+def test_cli_refuses_with_max_memory(small_pair, tmp_path, run_cli):
+    out = tmp_path / "out.pfm"
+    code, stdout, stderr = run_cli(["match", small_pair.folder / "left.png",
+                                    small_pair.folder / "right.png", "--ndisp", 8, "-o", out,
+                                    "--max-memory", "0.1"])
+    assert code == 2 and stdout == "" and not out.exists()
+    assert stderr.count("\n") == 1
+    assert stderr.startswith("sswjax: error: a 40x24 pair with ndisp 8 needs about ")
+    assert "more than the limit (0.10 GB)" in stderr
+    for bad in ("0", "-1", "lots", "inf"):
+        code, _, stderr = run_cli(["match", small_pair.folder / "left.png",
+                                   small_pair.folder / "right.png", "--ndisp", 8, "-o", out,
+                                   "--max-memory", bad])
+        assert code == 2 and f"argument --max-memory: must be a number of GB > 0, got '{bad}'" in stderr
