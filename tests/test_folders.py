@@ -153,3 +153,13 @@ def test_image_size_reads_headers(folders, tmp_path, texture):
     iio.imwrite(tmp_path / "g.png", texture(1, (5, 7)))
     assert image_size(tmp_path / "g.png") == (5, 7, 1)
     assert [p.name for p in folder_pairs(*folders)] == ["a.png", "b.png", "c.png"]
+
+
+def test_resume_is_for_folders(folders, tmp_path, run_cli):
+    left, right = folders
+    out = tmp_path / "one.pfm"
+    code, _, stderr = run_cli(["match", left / "a.png", right / "a.png", "--ndisp", 8, "-o", out,
+                               "--resume"])
+    assert code == 2 and not out.exists()
+    assert stderr == ("sswjax: error: --resume is for folders "
+                      "(sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)\n")
