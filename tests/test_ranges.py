@@ -130,3 +130,13 @@ def test_cli_range_bad_input(small_pair, tmp_path, run_cli, min_disp, message):
                                f"--min-disp={min_disp}", "-o", tmp_path / "d.pfm"])
     assert (code, stderr) == (2, f"sswjax: error: {message}\n")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_validity_band_on_both_sides_for_negative_disparities():
+    # x - d < 0 (left of the right image) and x - d > W - 1 (right of it) are both the band.
+    from sswjax.stages.confidence import LEFT_BAND, validity_mask
+
+    disparity = np.array([[1.5, -2.0, 0.0, -1.0, -0.5]], np.float32)   # x - d: -1.5 3 2 4 4.5
+    bits = validity_mask(disparity, np.ones_like(disparity), np.zeros(disparity.shape, bool),
+                         threshold=0.0)
+    assert (np.asarray(bits) & LEFT_BAND).tolist() == [[2, 0, 0, 0, 2]]

@@ -31,7 +31,8 @@ Validity bits (:func:`validity_mask`; 0 = valid):
 
 - bit 0 (``LR_FAILED`` = 1): the pixel failed the left-right check and holds a filled value;
 - bit 1 (``LEFT_BAND`` = 2): ``x - d < 0`` for the final disparity ``d`` in the image's own
-  column frame: the matching right pixel would lie left of the right image;
+  column frame: the matching right pixel would lie left of the right image (or, with a
+  negative disparity range, ``x - d > W - 1``: right of it);
 - bit 2 (``LOW_CONFIDENCE`` = 4): confidence below the threshold given.
 """
 
@@ -47,7 +48,7 @@ from sswjax._checks import check_floating, check_rank, check_same_shape
 LR_FAILED = 1
 """Validity bit 0: failed the left-right check, the value was filled."""
 LEFT_BAND = 2
-"""Validity bit 1: ``x - d < 0``, no match inside the right image."""
+"""Validity bit 1: ``x - d < 0`` (or ``x - d > W - 1``), no match inside the right image."""
 LOW_CONFIDENCE = 4
 """Validity bit 2: confidence below the threshold."""
 
@@ -175,7 +176,8 @@ def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
     if not 0.0 <= float(threshold) <= 1.0:
         raise ValueError(f"low-confidence threshold must be in [0, 1], got {threshold}")
     columns = jnp.arange(disparity.shape[1], dtype=jnp.float32)[None, :]
-    band = columns - disparity < 0
+    # Negative ranges (sswjax.ranges) can point right of the right image too.
+    band = (columns - disparity < 0) | (columns - disparity > disparity.shape[1] - 1)
     bits = (jnp.where(lr_failed, LR_FAILED, 0) | jnp.where(band, LEFT_BAND, 0)
             | jnp.where(confidence < threshold, LOW_CONFIDENCE, 0))
     return bits.astype(jnp.uint8)
