@@ -12,12 +12,13 @@ filling and side-window refinement.
 from sswjax.params import DynamicParams, Params, StaticParams, load_params, preset, save_params
 from sswjax.registry import PRESETS
 from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
-from sswjax.api import ShapeBuckets, match
-from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity
+from sswjax.api import Matched, ShapeBuckets, match, match_with_confidence
+from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity, ssw_outputs
 
 __all__ = [
     "Calibration",
     "DynamicParams",
+    "Matched",
     "PRESETS",
     "Params",
     "ShapeBuckets",
@@ -26,12 +27,14 @@ __all__ = [
     "depth_from_disparity",
     "load_params",
     "match",
+    "match_with_confidence",
     "point_cloud",
     "preset",
     "read_calibration",
     "save_params",
     "select_and_refine",
     "ssw_disparity",
+    "ssw_outputs",
     "write_ply",
 ]
 __version__ = "0.1.0"

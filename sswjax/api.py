@@ -15,7 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from sswjax.params import Params
-from sswjax.pipeline import ssw_disparity
+from sswjax.pipeline import ssw_disparity, ssw_outputs
+from sswjax.stages.confidence import DEFAULT_MEASURE, DEFAULT_THRESHOLD, MEASURES
 from sswjax.ranges import check_disparity_range, from_range_frame, range_frame
 
 
@@ -189,6 +190,90 @@ def match(
     >>> round(float(np.median(d[:, 16:])), 2)
     5.0
     """
+    return _match_maps(left, right, ndisp, min_disp=min_disp, params=params, buckets=buckets,
+                       check_memory=check_memory, graph=ssw_disparity)
+
+
+class Matched(NamedTuple):
+    """What :func:`match_with_confidence` returns, all NumPy ``(H, W)``.
+
+    Attributes
+    ----------
+    disparity : float32
+        The dense map of :func:`match` (filled values included).
+    confidence : float32 in [0, 1]
+        Higher = more reliable (:mod:`sswjax.stages.confidence`).
+    validity : uint8
+        Bit mask, 0 = valid: bit 0 (1) failed the left-right check and filled, bit 1 (2) left
+        band (``x - d < 0``: no match in the right image), bit 2 (4) confidence below the
+        threshold.
+    """
+
+    disparity: np.ndarray
+    confidence: np.ndarray
+    validity: np.ndarray
+
+
+def match_with_confidence(
+    left, right, ndisp: int, *, min_disp: int = 0, params: Params | None = None,
+    buckets: ShapeBuckets | None = None, check_memory: bool = True,
+    low_confidence: float = DEFAULT_THRESHOLD, measure: str = DEFAULT_MEASURE,
+) -> Matched:
+    """:func:`match` with the confidence and the validity bits of every pixel.
+
+    One run of the jitted graph (:func:`sswjax.pipeline.ssw_outputs`); the disparity is
+    bit-identical to :func:`match`'s with the same options.
+
+    Parameters
+    ----------
+    left, right, ndisp, min_disp, params, buckets, check_memory
+        As for :func:`match`.
+    low_confidence : float in [0, 1]
+        Confidence below it sets validity bit 2 (default
+        :data:`sswjax.stages.confidence.DEFAULT_THRESHOLD`; 0 never sets it).
+    measure : str
+        Confidence measure, a key of :data:`sswjax.stages.confidence.MEASURES`.
+
+    Returns
+    -------
+    Matched
+        disparity float32 (H, W), confidence float32 (H, W), validity uint8 (H, W).
+
+    Examples
+    --------
+    >>> import numpy as np, sswjax
+    >>> rng = np.random.default_rng(0)
+    >>> right = rng.random((40, 64, 3), dtype=np.float32)
+    >>> left = np.roll(right, 5, axis=1)
+    >>> out = sswjax.match_with_confidence(left, right, ndisp=16)
+    >>> round(float(np.median(out.disparity[:, 16:])), 2), bool((out.validity[:, :4] & 2).all())
+    (5.0, True)
+    """
+    from sswjax.stages.confidence import validity_mask
+
+    if measure not in MEASURES:
+        raise ValueError(f"unknown confidence measure {measure!r}; choose from {', '.join(MEASURES)}")
+    if isinstance(low_confidence, bool) or not isinstance(low_confidence, (int, float, np.floating)) \
+            or not 0.0 <= float(low_confidence) <= 1.0:
+        raise ValueError(f"low_confidence must be a number in [0, 1], got {low_confidence!r}")
+    outputs = _match_maps(left, right, ndisp, min_disp=min_disp, params=params, buckets=buckets,
+                          check_memory=check_memory,
+                          graph=functools.partial(ssw_outputs, measure=measure))
+    validity = validity_mask(outputs.disparity, outputs.confidence, outputs.lr_failed,
+                             threshold=float(low_confidence))
+    return Matched(outputs.disparity, outputs.confidence, np.asarray(validity))
+
+
+def _match_maps(left, right, ndisp, *, min_disp: int, params: Params | None,
+                buckets: ShapeBuckets | None, check_memory: bool, graph):
+    """The one body of :func:`match` and :func:`match_with_confidence`: check the pair, move it
+    to the range's frame, pad it to its bucket, run ``graph`` in strips, crop and map back.
+
+    ``graph(left, right, params=, ndisp=[, valid_ndisp=])`` is a jitted function of the
+    pipeline returning the disparity float32 ``(H', W')`` or a NamedTuple of ``(H', W')`` maps
+    whose first is the disparity; the result has the same structure, every map ``(H, W)`` in
+    the pair's frame (only the disparity is shifted by ``min_disp``).
+    """
     from sswjax.params import check_params
 
     params = Params() if params is None else check_params(params)
@@ -202,15 +287,21 @@ def match(
 
         guard(height, width, int(ndisp), params=params, channels=left.shape[-1], buckets=buckets)
     if buckets is None:
-        run = functools.partial(ssw_disparity, params=params, ndisp=int(ndisp))
+        run = functools.partial(graph, params=params, ndisp=int(ndisp))
     else:
         padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), buckets)
         left, right = pad_to_bucket(left, right, padded_h, padded_w)
-        run = functools.partial(ssw_disparity, params=params, ndisp=padded_ndisp,
+        run = functools.partial(graph, params=params, ndisp=padded_ndisp,
                                 valid_ndisp=jnp.int32(ndisp))
-    disparity = in_strips(run, left, right, rows=params.static.strip_rows,
-                          overlap=params.static.strip_overlap)
-    return from_range_frame(disparity[:height, :width], min_disp=min_disp, width=true_width)
+    maps = in_strips(run, left, right, rows=params.static.strip_rows,
+                     overlap=params.static.strip_overlap)
+    if not isinstance(maps, tuple):
+        return from_range_frame(maps[:height, :width], min_disp=min_disp, width=true_width)
+    # The range's frame widens the pair by P = max(-min_disp, 0) columns on the left.
+    pad = max(-int(min_disp), 0)
+    return type(maps)(
+        from_range_frame(maps[0][:height, :width], min_disp=min_disp, width=true_width),
+        *(m[:height, pad:pad + true_width] for m in maps[1:]))
 
 
 def in_strips(run, left: np.ndarray, right: np.ndarray, *, rows: int, overlap: int) -> np.ndarray:
@@ -225,13 +316,14 @@ def in_strips(run, left: np.ndarray, right: np.ndarray, *, rows: int, overlap: i
     Parameters
     ----------
     run : callable
-        ``run(left, right) -> (H', W)`` disparity of float32 ``(H', W, C)`` images.
+        ``run(left, right) -> (H', W)`` map of float32 ``(H', W, C)`` images, or a NamedTuple
+        of such maps of any dtypes: each is stitched.
     left, right : float32 (H, W, C)
     rows, overlap : int >= 0
 
     Returns
     -------
-    numpy.ndarray, float32 (H, W)
+    numpy.ndarray (H, W) of the map's dtype, or the same NamedTuple of them
 
     Examples
     --------
@@ -244,12 +336,23 @@ def in_strips(run, left: np.ndarray, right: np.ndarray, *, rows: int, overlap: i
     height = left.shape[0]
     window = rows + 2 * overlap
     if rows <= 0 or window >= height:
-        return np.asarray(run(jnp.asarray(left), jnp.asarray(right)))
-    out = np.empty(left.shape[:2], np.float32)
+        return _to_numpy(run(jnp.asarray(left), jnp.asarray(right)))
+    out = None
     for first in range(0, height, rows):
         last = min(first + rows, height)
         top = min(max(first - overlap, 0), height - window)
-        strip = np.asarray(run(jnp.asarray(left[top:top + window]),
-                               jnp.asarray(right[top:top + window])))
-        out[first:last] = strip[first - top:last - top]
-    return out
+        strip = _to_numpy(run(jnp.asarray(left[top:top + window]),
+                              jnp.asarray(right[top:top + window])))
+        parts = strip if isinstance(strip, tuple) else (strip,)
+        if out is None:
+            out = [np.empty(left.shape[:2], part.dtype) for part in parts]
+        for whole, part in zip(out, parts):
+            whole[first:last] = part[first - top:last - top]
+    return type(strip)(*out) if isinstance(strip, tuple) else out[0]
+
+
+def _to_numpy(result):
+    """A map, or a (Named)tuple of maps, as NumPy arrays of the same structure."""
+    if isinstance(result, tuple):
+        return type(result)(*(np.asarray(part) for part in result))
+    return np.asarray(result)

@@ -140,17 +140,30 @@ def cmd_match(args) -> int:
     """``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` (folders: :mod:`sswjax.folders`)."""
     import sswjax
     from sswjax.data.io import read_image
+    from sswjax.cli_confidence import invalid_as_inf, wants_confidence, write_confidence_outputs
     from sswjax.folders import guard_pair, match_folders
 
     if os.path.isdir(args.left) or os.path.isdir(args.right):  # never raises
+        if wants_confidence(args):
+            raise ValueError("--confidence, --validity and --invalid-as-inf take one pair, "
+                             "not folders")
         return match_folders(args)
-    _check_output_dir(args.output, args.png, args.kitti_png, args.depth, args.ply)
+    _check_output_dir(args.output, args.png, args.kitti_png, args.depth, args.ply,
+                      args.confidence, args.validity)
     calib = _calibration(args)
     params = _params(args)
     guard_pair(args, params)
     left, right = read_image(args.left), read_image(args.right)
     start = time.perf_counter()
-    disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params)
+    if wants_confidence(args):
+        matched = sswjax.match_with_confidence(left, right, args.ndisp, min_disp=args.min_disp,
+                                               params=params, low_confidence=args.low_confidence)
+        disparity = matched.disparity
+        if args.invalid_as_inf:
+            disparity = invalid_as_inf(disparity, matched.validity)
+        write_confidence_outputs(matched, confidence=args.confidence, validity=args.validity)
+    else:
+        disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params)
     seconds = time.perf_counter() - start
     _write_outputs(disparity, args.output, args.png, args.ndisp, min_disp=args.min_disp)
     _write_geometry_outputs(args, disparity, left, calib)
@@ -376,6 +389,8 @@ def _methods_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from sswjax.cli_confidence import add_confidence_options
+
     parser = _Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--no-cache", action="store_true",
@@ -398,6 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--bucket", action="store_true",
                        help="folders: pad pairs to a few bucketed shapes (fewer compilations)")
     match.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
+    add_confidence_options(match)
     _add_geometry_options(match)
     _add_parameter_options(match, "the")
     match.set_defaults(run=cmd_match)

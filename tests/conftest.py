@@ -4,6 +4,7 @@ pytest imports test files with ``--import-mode=importlib``, so a test file canno
 another one nor this file: what several files share is a fixture here.
 
 - ``texture``: reproducible random uint8 images.
+- ``square_pair``: a 90x60 float pair, background at disparity 3, a square at 7.
 - ``small_pair``: a 24x40 pair with disparity 3 written in every input form, and broken files.
 - ``middeval3``: builds a MiddEval3-like data folder of three small scenes.
 - ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
@@ -81,6 +82,17 @@ def small_pair(tmp_path_factory) -> SmallPair:
     (folder / "empty.png").write_bytes(b"")
     (folder / "folder.png").mkdir()
     return SmallPair(folder, HEIGHT, WIDTH, SHIFT, NDISP)
+
+
+@pytest.fixture(scope="session")
+def square_pair():
+    """A 90x60 float32 colour pair: background at disparity 3, a nearer square (rows 30-59,
+    columns 20-44 of the left view) at disparity 7. Read-only."""
+    rng = np.random.default_rng(11)
+    right = rng.random((90, 60, 3), dtype=np.float32)
+    left = np.roll(right, 3, axis=1)
+    left[30:60, 20:45] = np.roll(right, 7, axis=1)[30:60, 20:45]
+    return left, right
 
 
 class FakeMiddEval3:

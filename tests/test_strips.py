@@ -7,12 +7,8 @@ import sswjax
 
 
 @pytest.fixture(scope="module")
-def pair():
-    rng = np.random.default_rng(11)
-    right = rng.random((90, 60, 3), dtype=np.float32)
-    left = np.roll(right, 3, axis=1)
-    left[30:60, 20:45] = np.roll(right, 7, axis=1)[30:60, 20:45]  # a nearer square
-    return left, right
+def pair(square_pair):
+    return square_pair
 
 
 def test_local_method_in_strips_equals_the_whole_image(pair):

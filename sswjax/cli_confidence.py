@@ -1,0 +1,96 @@
+"""``sswjax match`` options for the confidence and the validity of a map.
+
+``--confidence CONF.pfm`` writes the confidence (float32 in [0, 1], higher = more reliable),
+``--validity VALID.png`` the validity bits as an 8-bit gray PNG (0 = valid; bit 0 = failed the
+left-right check and filled, bit 1 = left band ``x - d < 0``, bit 2 = confidence below
+``--low-confidence``; :mod:`sswjax.stages.confidence`), and ``--invalid-as-inf`` writes the
+``-o`` map (and ``--png``) with ``inf`` wherever a validity bit is set, the MiddEval3
+convention for pixels without an estimate. Every output is checked before the run and written
+atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from sswjax.stages.confidence import DEFAULT_THRESHOLD
+
+__all__ = ["add_confidence_options", "invalid_as_inf", "wants_confidence", "write_confidence_outputs"]
+
+
+def _threshold(text: str) -> float:
+    """``--low-confidence`` value: a number in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def add_confidence_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--confidence``, ``--validity``, ``--invalid-as-inf`` and ``--low-confidence``."""
+    parser.add_argument("--confidence", type=Path, metavar="CONF.pfm",
+                        help="also write the confidence of each pixel (PFM, float32 in [0, 1], "
+                             "higher = more reliable)")
+    parser.add_argument("--validity", type=Path, metavar="VALID.png",
+                        help="also write the validity bits (8-bit PNG, 0 = valid; 1: failed the "
+                             "left-right check and filled, 2: left band x - d < 0, 4: low "
+                             "confidence)")
+    parser.add_argument("--invalid-as-inf", action="store_true",
+                        help="write inf into -o (and --png) wherever a validity bit is set "
+                             "(the MiddEval3 convention) instead of the filled values")
+    parser.add_argument("--low-confidence", type=_threshold, default=DEFAULT_THRESHOLD,
+                        metavar="T", help="confidence below T sets validity bit 2 "
+                                          f"(default {DEFAULT_THRESHOLD}; 0 never)")
+
+
+def wants_confidence(args) -> bool:
+    """Whether ``args`` asks for any output of :func:`sswjax.match_with_confidence`."""
+    return (getattr(args, "confidence", None) is not None
+            or getattr(args, "validity", None) is not None
+            or getattr(args, "invalid_as_inf", False))
+
+
+def invalid_as_inf(disparity: np.ndarray, validity: np.ndarray) -> np.ndarray:
+    """The map with ``inf`` where any validity bit is set.
+
+    Parameters
+    ----------
+    disparity : float32 (H, W)
+    validity : uint8 (H, W)
+
+    Returns
+    -------
+    float32 (H, W), a new array
+
+    Examples
+    --------
+    >>> invalid_as_inf(np.array([[1.0, 2.0]], np.float32), np.array([[0, 4]], np.uint8)).tolist()
+    [[1.0, inf]]
+    """
+    return np.where(validity == 0, disparity, np.float32(np.inf)).astype(np.float32)
+
+
+def write_confidence_outputs(matched, *, confidence: Path | None, validity: Path | None) -> None:
+    """Atomically write the confidence PFM and the validity PNG that were asked for.
+
+    Parameters
+    ----------
+    matched : sswjax.Matched
+    confidence, validity : pathlib.Path or None
+    """
+    import imageio.v3 as iio
+
+    from sswjax.data.files import atomic_output
+    from sswjax.data.io import write_pfm
+
+    if confidence is not None:
+        write_pfm(confidence, matched.confidence)
+    if validity is not None:
+        with atomic_output(validity) as tmp:
+            iio.imwrite(tmp, np.asarray(matched.validity, np.uint8), extension=".png")
