@@ -53,7 +53,7 @@ LOW_CONFIDENCE = 4
 """Validity bit 2: confidence below the threshold."""
 
 DEFAULT_MEASURE = "combined"
-DEFAULT_THRESHOLD = 0.1
+DEFAULT_THRESHOLD = 0.05
 """Default low-confidence threshold (bit 2): see the README's "Confidence and validity"."""
 
 
