@@ -75,14 +75,15 @@ with the semi-global optimiser (whose scans take about half a GB more to compile
 MARGIN = 1.15
 """Factor over the fitted model: the measured peaks were 0.93 to 1.06 times the model."""
 
-SLACK = 50_000_000
-"""Bytes added after the margin (what a busier process may hold besides)."""
+SLACK = 150_000_000
+"""Bytes added after the margin: compiling the same graph has peaked up to 0.17 GB higher in
+one run than in others (0.62 against 0.45 GB for ``paper`` at 320 x 200 x 48)."""
 
-STATED_RATIO = 1.4
+STATED_RATIO = 1.6
 """Estimates are between 1 and this many times the measured peak (README, tests), except
 where the compile floor decides: compiling takes less memory for some small shapes than for
 the tiny one measured (``accurate`` at 200 x 120: 0.44 GB against 0.95 GB at 96 x 64), where
-the estimate (1.15 GB) is then up to 2.6 times the peak."""
+the estimate (1.25 GB) is then up to 2.8 times the peak."""
 
 
 def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
