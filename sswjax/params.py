@@ -66,7 +66,8 @@ class StaticParams(NamedTuple):
     optimizer : str
         A key of :data:`sswjax.registry.OPTIMIZERS`: ``"none"`` (winner-takes-all on the
         aggregated cost, the paper) or ``"sgm"`` (semi-global optimisation of the aggregated
-        volume before the selection, :mod:`sswjax.stages.sgm`).
+        volume before the selection, :mod:`sswjax.stages.sgm`; ``"sgm-half"``, the same at half
+        resolution added back to the aggregated cost).
     sgm_paths : int
         4 or 8 paths of the semi-global optimisation.
     fill : str
@@ -135,6 +136,9 @@ class DynamicParams(NamedTuple):
         Guide intensity change that halves P2 (:func:`sswjax.stages.sgm.path_penalties`).
     sgm_segment_factor : float, in [0, 1]
         Factor of both penalties across superpixel boundaries (1: no effect).
+    sgm_detail_weight : float
+        ``optimizer="sgm-half"``: weight of the full-resolution aggregated cost added to the
+        doubled half-resolution paths.
     plane_min_support : float, in [0, 1]
         Share of a superpixel's pixels that must be valid inliers for its plane to fill it.
     plane_inlier_scale : float
@@ -155,6 +159,7 @@ class DynamicParams(NamedTuple):
     sgm_p2: Any = 0.4
     sgm_sigma: Any = 0.05
     sgm_segment_factor: Any = 1.0
+    sgm_detail_weight: Any = 1.0
     plane_min_support: Any = 0.25
     plane_inlier_scale: Any = 1.0
     lcn_eps: Any = 4 / 255

@@ -144,18 +144,19 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
 
 
-def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0
-            ) -> tuple[jax.Array, ConfidenceCues]:
+def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0, *,
+            parabola=None) -> tuple[jax.Array, ConfidenceCues]:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median.
 
-    Returns the dense map and the cues of its confidence (:mod:`sswjax.stages.confidence`);
-    callers that keep only the map let ``jit`` drop the cues."""
+    ``parabola``: the three costs of the sub-pixel fit, when they come from another volume than
+    the winners' (default: the winners' ``before``, ``cost``, ``after``). Returns the dense map
+    and the cues of its confidence (:mod:`sswjax.stages.confidence`); callers that keep only
+    the map let ``jit`` drop the cues."""
     static = params.static
     with jax.named_scope(STAGES[4]):
         if static.subpixel:
-            disparity = parabola_refine(
-                winners.disparity, winners.before, winners.cost, winners.after, ndisp=ndisp
-            )
+            before, centre, after = parabola or (winners.before, winners.cost, winners.after)
+            disparity = parabola_refine(winners.disparity, before, centre, after, ndisp=ndisp)
         else:
             disparity = winners.disparity.astype(jnp.float32)
     initial = disparity
@@ -224,6 +225,19 @@ def _aggregated_volume(features, left, labels, num_segments, ndisp, params) -> j
 
     _, blocks = jax.lax.scan(step, None, jnp.arange(0, ndisp, chunk))
     return blocks.reshape((-1, *blocks.shape[2:]))[:ndisp]
+
+
+def _costs_around(cost: jax.Array, disparity: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Costs of ``cost`` (D, H, W) at ``disparity - 1``, ``disparity``, ``disparity + 1``
+    (int32 (H, W)); +inf outside the volume, as in the fold."""
+    ndisp = cost.shape[0]
+
+    def at(offset):
+        index = disparity + offset
+        value = jnp.take_along_axis(cost, jnp.clip(index, 0, ndisp - 1)[None], axis=0)[0]
+        return jnp.where((index >= 0) & (index < ndisp), value, jnp.inf)
+
+    return at(-1), at(0), at(1)
 
 
 def _fold_volume(cost: jax.Array, limit, chunk: int) -> Winners:
@@ -350,9 +364,11 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
             # pass through them, and +inf would turn the recursion's differences into NaN.
             cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost, _OUT_OF_RANGE_COST)
         with jax.named_scope(STAGES[3]):
-            cost = optimizer.fn(cost, left, labels=labels if num_segments else None,
-                                params=params)
-        return _refine(_fold_volume(cost, limit, chunk), params, limit, labels, num_segments)
+            optimised = optimizer.fn(cost, left, labels=labels if num_segments else None,
+                                     params=params)
+        winners = _fold_volume(optimised, limit, chunk)
+        parabola = _costs_around(cost, winners.disparity) if optimizer.subpixel_on_input else None
+        return _refine(winners, params, limit, labels, num_segments, parabola=parabola)
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
         winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)

@@ -37,12 +37,14 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
-from sswjax.evaluation.peers import pandora_disparity, sgbm_disparity
+import functools
+
+from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_disparity
 from sswjax.stages.aggregation import segment_side_window_aggregation
 from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
 from sswjax.stages.refinement import fill_invalid
-from sswjax.stages.sgm import semi_global
+from sswjax.stages.sgm import half_resolution_semi_global, semi_global
 from sswjax.stages.baselines import (
     bilateral_filter,
     box_filter,
@@ -139,11 +141,15 @@ class Optimizer(NamedTuple):
         One line for the CLI's help and the tables.
     uses_segments : bool
         Whether it uses the superpixels.
+    subpixel_on_input : bool
+        Whether the sub-pixel parabola fits the aggregated cost the optimiser was given rather
+        than its output (whose interpolated coarse term would bias it).
     """
 
     fn: Callable[..., Any] | None
     summary: str
     uses_segments: bool = False
+    subpixel_on_input: bool = False
 
 
 def _semi_global(cost, guide, *, labels, params):
@@ -153,11 +159,22 @@ def _semi_global(cost, guide, *, labels, params):
                        segment_factor=dynamic.sgm_segment_factor)
 
 
+def _half_resolution_semi_global(cost, guide, *, labels, params):
+    static, dynamic = params.static, params.dynamic
+    return half_resolution_semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
+                                       sigma=dynamic.sgm_sigma, paths=static.sgm_paths,
+                                       detail_weight=dynamic.sgm_detail_weight)
+
+
 OPTIMIZERS: dict[str, Optimizer] = {
     "none": Optimizer(None, "winner-takes-all directly on the aggregated cost (the paper, Eq. 8)"),
     "sgm": Optimizer(_semi_global, "semi-global optimisation of the aggregated cost, 4 or 8 "
                      "paths, guide-adaptive P2, reduced across superpixels (Hirschmuller 2008)",
                      uses_segments=True),
+    "sgm-half": Optimizer(_half_resolution_semi_global,
+                          "semi-global optimisation of the volume halved in space and disparity, "
+                          "doubled back onto the aggregated cost (an eighth of the paths' work)",
+                          subpixel_on_input=True),
 }
 """Optimizer name (``Params.optimizer``) -> :class:`Optimizer`."""
 
@@ -243,7 +260,11 @@ class Peer(NamedTuple):
 
 
 PEERS: dict[str, Peer] = {
+    "bm": Peer(bm_disparity, "OpenCV StereoBM, block 9 on the luma, background fill (extra [bench])"),
     "sgbm": Peer(sgbm_disparity, "OpenCV StereoSGBM 3-way, block 3, background fill (extra [bench])"),
+    "sgbm-hh": Peer(functools.partial(sgbm_disparity, mode="hh"),
+                    "OpenCV StereoSGBM HH (8 paths, full-size buffers), block 3, background fill "
+                    "(extra [bench])"),
     "pandora": Peer(pandora_disparity,
                     "CNES Pandora census 5x5 + SGM, background fill (extra [pandora])"),
 }

@@ -15,5 +15,6 @@ Data flows through them in this order (``sswjax.pipeline`` composes them into on
 ``refinement``   left-right check and filling (Eq. 9)
 ``confidence``   confidence measures and validity bits from the fold's cues and the refinement
 ``planes``       robust plane per superpixel, filling the pixels it supports
+``pyramid``      halving and doubling of images and volumes (half-resolution SGM)
 ===============  =================================================================================
 """

@@ -1,0 +1,112 @@
+"""Scale changes of images and cost volumes by a factor of two (for cross-scale optimisation).
+
+Array conventions (whole module): images are float32 ``(H, W, C)``; cost volumes are float32
+``(D, H, W)``, disparity first. Halving pads odd sizes by edge replication and averages 2 x 2
+blocks (2 x 2 x 2 for volumes, so a coarse disparity ``j`` stands for the fine disparities
+``2 j`` and ``2 j + 1``: the volume keeps its disparity units only in the spatial directions,
+see :func:`halve_volume`). Doubling is the inverse mapping, trilinear with the centres aligned:
+coarse pixel (or disparity) ``i`` sits at fine ``2 i + 0.5``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from sswjax._checks import check_floating, check_rank
+
+__all__ = ["double_volume", "halve_image", "halve_volume"]
+
+
+def _pad_even(x: jax.Array, axes: tuple[int, ...]) -> jax.Array:
+    pad = [(0, x.shape[a] % 2 if a in axes else 0) for a in range(x.ndim)]
+    return jnp.pad(x, pad, mode="edge") if any(p for _, p in pad) else x
+
+
+def _mean_of_pairs(x: jax.Array, axis: int) -> jax.Array:
+    even = jax.lax.slice_in_dim(x, 0, None, 2, axis)
+    odd = jax.lax.slice_in_dim(x, 1, None, 2, axis)
+    return 0.5 * (even + odd)
+
+
+def halve_image(image: jax.Array) -> jax.Array:
+    """Mean of 2 x 2 pixel blocks.
+
+    Parameters
+    ----------
+    image : float32 (H, W, C)
+
+    Returns
+    -------
+    float32 (ceil(H / 2), ceil(W / 2), C)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> halve_image(jnp.arange(6.0).reshape(2, 3, 1))[..., 0].tolist()
+    [[2.0, 3.5]]
+    """
+    check_rank("image", image, 3)
+    check_floating("image", image)
+    image = _pad_even(image, (0, 1))
+    return _mean_of_pairs(_mean_of_pairs(image, 0), 1)
+
+
+def halve_volume(cost: jax.Array) -> jax.Array:
+    """Mean of 2 x 2 x 2 blocks of a cost volume (disparity pairs and 2 x 2 pixels).
+
+    A disparity of ``d`` fine pixels is ``d / 2`` coarse pixels, so averaging the disparity
+    pairs ``(2 j, 2 j + 1)`` gives the cost of coarse disparity ``j`` (to half a pixel).
+
+    Parameters
+    ----------
+    cost : float32 (D, H, W)
+
+    Returns
+    -------
+    float32 (ceil(D / 2), ceil(H / 2), ceil(W / 2))
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> halve_volume(jnp.ones((3, 2, 2))).shape
+    (2, 1, 1)
+    """
+    check_rank("cost", cost, 3)
+    check_floating("cost", cost)
+    cost = _pad_even(cost, (0, 1, 2))
+    return _mean_of_pairs(_mean_of_pairs(_mean_of_pairs(cost, 0), 1), 2)
+
+
+def double_volume(coarse: jax.Array, *, shape: tuple[int, int, int]) -> jax.Array:
+    """The inverse of :func:`halve_volume`: trilinear interpolation, centres aligned.
+
+    Linear in disparity too, so that a sum with a fine volume stays smooth in ``d`` for the
+    parabola of the sub-pixel fit (a repeated coarse plane biased it by a quarter pixel).
+
+    Parameters
+    ----------
+    coarse : float32 (D', H', W')
+    shape : (D, H, W), keyword-only
+        The fine volume's shape, with ``D' = ceil(D / 2)`` etc.
+
+    Returns
+    -------
+    float32 (D, H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> fine = double_volume(jnp.arange(2.0).reshape(1, 1, 2), shape=(2, 1, 4))
+    >>> fine[1, 0].tolist()                      # pixel centres: 0.5 -> 0, 2.5 -> 1
+    [0.0, 0.25, 0.75, 1.0]
+    """
+    check_rank("coarse", coarse, 3)
+    check_floating("coarse", coarse)
+    depth, height, width = shape
+    expected = tuple(-(-n // 2) for n in shape)
+    if tuple(coarse.shape) != expected:
+        raise ValueError(f"coarse volume of shape {tuple(coarse.shape)} does not halve {shape}")
+    # Half-pixel centres: fine index x samples the coarse grid at (x + 0.5) / 2 - 0.5.
+    fine = jax.image.resize(coarse, tuple(2 * n for n in coarse.shape), method="linear")
+    return fine[:depth, :height, :width]
