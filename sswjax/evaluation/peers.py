@@ -5,7 +5,9 @@ read from disk (uint8/uint16, gray or colour) and returning a dense disparity ma
 Invalid pixels of a peer are filled like ours (:func:`sswjax.stages.refinement.fill_background`, the
 smaller of the nearest valid disparities on the row), so every method is scored dense.
 
-- ``sgbm``: OpenCV's ``StereoSGBM`` in 3-way mode (Hirschmuller, "Stereo Processing by
+- ``bm``: OpenCV's ``StereoBM``, block 9 on the luma, uniqueness 10, the same speckle filter
+  and left-right check as ``sgbm``.
+- ``sgbm`` (and ``sgbm-hh``, its 8-path full-memory mode): OpenCV's ``StereoSGBM`` in 3-way mode (Hirschmuller, "Stereo Processing by
   Semiglobal Matching and Mutual Information", TPAMI 2008), block 3, P1 = 8 * 3 * 3^2,
   P2 = 32 * 3 * 3^2, uniqueness 10, speckle window 100 / range 2, left-right check 1 px.
   Needs ``opencv-python-headless`` (extra ``[bench]``).
@@ -32,8 +34,29 @@ def _to_uint8(image: np.ndarray) -> np.ndarray:
     return image.astype(np.uint8)
 
 
-def sgbm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_size: int = 3) -> np.ndarray:
-    """OpenCV StereoSGBM (3-way) disparity, invalid pixels filled from the background side.
+def _opencv():
+    try:
+        import cv2
+    except ImportError as error:  # pragma: no cover - depends on the environment
+        raise ValueError("OpenCV peers need OpenCV: pip install 'sswjax[bench]'") from error
+    return cv2
+
+
+def _dense(raw: np.ndarray, ndisp: int) -> np.ndarray:
+    """OpenCV's fixed-point map (1/16 px, negative = invalid) -> dense float32 in [0, ndisp-1]."""
+    raw = raw.astype(np.float32) / 16.0
+    filled = np.asarray(fill_background(raw, raw >= 0))
+    return np.clip(filled, 0, ndisp - 1).astype(np.float32)
+
+
+SGBM_MODES = ("3way", "hh", "sgbm")
+"""OpenCV StereoSGBM modes: 3-way (4 paths, the default), HH (8 paths, full-size buffers),
+SGBM (5 paths)."""
+
+
+def sgbm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_size: int = 3,
+                   mode: str = "3way") -> np.ndarray:
+    """OpenCV StereoSGBM disparity, invalid pixels filled from the background side.
 
     Parameters
     ----------
@@ -41,21 +64,23 @@ def sgbm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_siz
     ndisp : int
         Disparities 0..ndisp-1 (rounded up to a multiple of 16 for OpenCV, then clipped).
     block_size : int, odd
+    mode : {"3way", "hh", "sgbm"}
+        See :data:`SGBM_MODES`.
 
     Returns
     -------
     float32 (H, W), dense.
     """
-    try:
-        import cv2
-    except ImportError as error:  # pragma: no cover - depends on the environment
-        raise ValueError("method sgbm needs OpenCV: pip install 'sswjax[bench]'") from error
+    cv2 = _opencv()
+    modes = {"3way": cv2.STEREO_SGBM_MODE_SGBM_3WAY, "hh": cv2.STEREO_SGBM_MODE_HH,
+             "sgbm": cv2.STEREO_SGBM_MODE_SGBM}
+    if mode not in modes:
+        raise ValueError(f"mode must be one of {SGBM_MODES}, got {mode!r}")
     left, right = _to_uint8(left), _to_uint8(right)
     channels = 1 if left.ndim == 2 else 3
-    num = int(np.ceil(ndisp / 16) * 16)
     matcher = cv2.StereoSGBM_create(
         minDisparity=0,
-        numDisparities=num,
+        numDisparities=int(np.ceil(ndisp / 16) * 16),
         blockSize=block_size,
         P1=8 * channels * block_size**2,
         P2=32 * channels * block_size**2,
@@ -63,12 +88,36 @@ def sgbm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_siz
         uniquenessRatio=10,
         speckleWindowSize=100,
         speckleRange=2,
-        mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
+        mode=modes[mode],
     )
-    raw = matcher.compute(left, right).astype(np.float32) / 16.0
-    valid = raw >= 0
-    filled = np.asarray(fill_background(raw, valid))
-    return np.clip(filled, 0, ndisp - 1).astype(np.float32)
+    return _dense(matcher.compute(left, right), ndisp)
+
+
+def bm_disparity(left: np.ndarray, right: np.ndarray, ndisp: int, *, block_size: int = 9) -> np.ndarray:
+    """OpenCV StereoBM (block matching on the x-Sobel prefiltered gray images), filled like
+    :func:`sgbm_disparity`: OpenCV's fastest matcher.
+
+    Parameters
+    ----------
+    left, right : (H, W) or (H, W, 3) uint8/uint16/float images (colour is converted to luma)
+    ndisp : int
+        Disparities 0..ndisp-1 (rounded up to a multiple of 16 for OpenCV, then clipped).
+    block_size : int, odd, >= 5
+
+    Returns
+    -------
+    float32 (H, W), dense.
+    """
+    cv2 = _opencv()
+    left, right = (np.clip(_gray_float32(_to_uint8(image)).round(), 0, 255).astype(np.uint8)
+                   for image in (left, right))
+    matcher = cv2.StereoBM_create(numDisparities=int(np.ceil(ndisp / 16) * 16),
+                                  blockSize=block_size)
+    matcher.setUniquenessRatio(10)
+    matcher.setSpeckleWindowSize(100)
+    matcher.setSpeckleRange(2)
+    matcher.setDisp12MaxDiff(1)
+    return _dense(matcher.compute(left, right), ndisp)
 
 
 def _gray_float32(image: np.ndarray) -> np.ndarray:
