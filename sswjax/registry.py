@@ -248,6 +248,10 @@ PRESETS: dict[str, Preset] = {
                         "fill_radius": 4},
                        "side-window aggregation without the segment term, then semi-global "
                        "optimisation of the aggregated cost (4 paths)"),
+    "fast": Preset({"optimizer": "sgm-half", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0,
+                    "fill_radius": 4, "sgm_detail_weight": 4.0},
+                   "accurate with the semi-global paths at half resolution, added back to the "
+                   "aggregated cost weighted 4 (about 1.4x faster)"),
 }
 """Preset name -> :class:`Preset`."""
 

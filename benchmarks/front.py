@@ -1,0 +1,196 @@
+"""The speed/accuracy front: every preset and every peer, timed and scored in one run.
+
+For each data set (MiddEval3 trainingQ, the KITTI 2012 pairs, Middlebury 2001) and each pair,
+every method runs once to warm up (compilation for the presets), then ``--repeats`` rounds in
+which the methods run one after the other (alternating, so that machine noise hits all of
+them); a method's time on a pair is its median over the rounds. Reported per method and set:
+the median time per pair, the median over pairs of its time divided by OpenCV SGBM 3-way's on
+the same pair, and the errors (trainingQ: weighted bad 2.0 / 1.0 / 0.5, nonocc and all; KITTI:
+mean bad 2.0 and 3.0; Middlebury 2001: mean bad 2.0), and whether the method is ahead (lower
+bad 2.0, "all") of every peer at least as fast. Presets run at each pair's exact shape on
+trainingQ (the timed set of the speed goals) and through 64-pixel shape buckets on the others
+(their pairs differ in ndisp: one compilation per bucket).
+
+Methods: the presets of :data:`sswjax.PRESETS` and the peers of :data:`sswjax.registry.PEERS`
+that are installed (OpenCV StereoBM, SGBM 3-way, SGBM HH; CNES Pandora); ``--methods`` narrows.
+Writes ``front.md``, ``front.csv`` and ``front.png`` (time per pair against bad 2.0, log time
+axis, one panel per set) into ``-o``, and records ``jax.devices()``.
+
+    python benchmarks/front.py [--data DIR] [--sets trainingQ KITTI2012] [--repeats 3] [-o benchmarks/results/front]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import sys
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+import sswjax
+from sswjax.api import ShapeBuckets
+from sswjax.data.layouts import load_scenes
+from sswjax.evaluation.metrics import evaluate_disparity
+from sswjax.evaluation.runner import SCORINGS, _average
+from sswjax.registry import PEERS
+
+from _report import write_report  # benchmarks/, on the path when run as a script
+from ablation import SETS  # the three sets, their scoring and columns
+
+REFERENCE = "sgbm"  # the peer every time is divided by
+
+
+def _method_runners(names, bucket_step: int) -> dict[str, dict]:
+    """Name -> {set kind: callable(left, right, ndisp)}; peers that are not installed are left
+    out (with a note on stderr)."""
+    buckets = ShapeBuckets(size_step=bucket_step, ndisp_step=32)
+    runners = {}
+    for name in names:
+        if name in sswjax.PRESETS:
+            params = sswjax.preset(name)
+            runners[name] = {
+                "exact": lambda l, r, n, p=params: sswjax.match(l, r, n, params=p),
+                "bucket": lambda l, r, n, p=params: sswjax.match(l, r, n, params=p, buckets=buckets),
+            }
+            continue
+        fn = PEERS[name].fn
+        try:
+            probe = np.zeros((32, 64), np.uint8)
+            fn(probe, probe, 16)
+        except (ValueError, ImportError) as error:
+            print(f"front: skipping {name}: {error}", file=sys.stderr)
+            continue
+        runners[name] = {"exact": fn, "bucket": fn}
+    return runners
+
+
+def time_set(runners: dict, scenes, kind: str, repeats: int):
+    """Per method: per-scene seconds (median over rounds) and disparity maps."""
+    seconds = {name: {} for name in runners}
+    maps = {name: {} for name in runners}
+    for scene in scenes:
+        args = (scene.left, scene.right, scene.ndisp)
+        for name, run in runners.items():
+            maps[name][scene.name] = np.asarray(run[kind](*args))  # warm-up (compilation)
+        rounds = {name: [] for name in runners}
+        for _ in range(repeats):
+            for name, run in runners.items():
+                start = time.perf_counter()
+                np.asarray(run[kind](*args))
+                rounds[name].append(time.perf_counter() - start)
+        for name in runners:
+            seconds[name][scene.name] = float(np.median(rounds[name]))
+        print(f"  {scene.name}: " + ", ".join(f"{n} {seconds[n][scene.name]:.3f} s"
+                                              for n in runners), file=sys.stderr, flush=True)
+    return seconds, maps
+
+
+def score(maps: dict, scenes, set_name: str) -> dict[str, float]:
+    """Averaged errors of one method's maps, keyed like the ablation table's columns."""
+    _, scoring_name, columns = SETS[set_name]
+    scoring = SCORINGS[scoring_name]
+    metrics = {s.name: evaluate_disparity(maps[s.name], s.ground_truth, mask=s.mask,
+                                          ndisp=s.ndisp, thresholds=scoring.thresholds)
+               for s in scenes}
+    out = {}
+    for region, key in columns:
+        values = {name: m[region][key] for name, m in metrics.items() if region in m}
+        out[f"{key} {region}"] = _average(values, scoring)
+    return out
+
+
+def ahead_of_faster_peers(rows: list[dict], set_name: str) -> None:
+    """Mark each preset row: ahead (lower bad 2.0 all) of every peer at least as fast?"""
+    key, time_key = f"{set_name} bad2.0 all", f"{set_name} s/pair"
+    peers = [r for r in rows if r["kind"] == "peer" and key in r]
+    for row in rows:
+        if row["kind"] != "preset" or key not in row:
+            continue
+        faster = [p for p in peers if p[time_key] <= row[time_key]]
+        row[f"{set_name} ahead"] = all(row[key] < p[key] for p in faster)
+
+
+def plot(rows: list[dict], sets: list[str], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(1, len(sets), figsize=(5 * len(sets), 4), squeeze=False)
+    for axis, set_name in zip(axes[0], sets):
+        for row in rows:
+            if f"{set_name} s/pair" not in row:
+                continue
+            x, y = row[f"{set_name} s/pair"], row[f"{set_name} bad2.0 all"]
+            marker = "o" if row["kind"] == "preset" else "s"
+            axis.scatter([x], [y], marker=marker, s=40)
+            axis.annotate(row["method"], (x, y), textcoords="offset points", xytext=(4, 4),
+                          fontsize=8)
+        axis.set_xscale("log")
+        axis.set_xlabel("median time per pair (s, log)")
+        axis.set_ylabel("bad 2.0, all pixels with ground truth (%)")
+        axis.set_title(set_name)
+        axis.grid(True, which="both", alpha=0.3)
+    figure.suptitle("sswjax presets (circles) and peers (squares): lower left is better")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2]
+                        / "shared" / "data", help="folder holding the three data sets")
+    parser.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))
+    parser.add_argument("--methods", nargs="+", default=[*sswjax.PRESETS, *PEERS],
+                        choices=[*sswjax.PRESETS, *PEERS])
+    parser.add_argument("--scenes", nargs="+", help="only these scenes (of every set)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed rounds per pair (3)")
+    parser.add_argument("--bucket-step", type=int, default=64)
+    parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results/front"))
+    args = parser.parse_args(argv)
+    if REFERENCE not in args.methods:
+        parser.error(f"--methods must include {REFERENCE}, the reference of the time ratios")
+    runners = _method_runners(args.methods, args.bucket_step)
+    rows = [{"method": name, "kind": "preset" if name in sswjax.PRESETS else "peer"}
+            for name in runners]
+    for set_name in args.sets:
+        folder = SETS[set_name][0]
+        scenes = [s for s in load_scenes(args.data / folder)
+                  if not args.scenes or s.name in args.scenes]
+        if not scenes:
+            continue
+        print(f"{set_name}: {len(scenes)} pairs", file=sys.stderr, flush=True)
+        kind = "exact" if set_name == "trainingQ" else "bucket"
+        seconds, maps = time_set(runners, scenes, kind, args.repeats)
+        for row in rows:
+            name = row["method"]
+            times = seconds[name]
+            row[f"{set_name} s/pair"] = float(np.median(list(times.values())))
+            row[f"{set_name} x sgbm"] = float(np.median(
+                [times[s] / seconds[REFERENCE][s] for s in times]))
+            row.update({f"{set_name} {k}": v for k, v in score(maps[name], scenes, set_name).items()})
+        ahead_of_faster_peers(rows, set_name)
+    keys = list(dict.fromkeys(k for row in rows for k in row))
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    for row in rows:
+        cells = [("yes" if row[k] else "**no**") if isinstance(row.get(k), bool)
+                 else f"{row[k]:.3f}" if k.endswith(("s/pair",)) and k in row
+                 else f"{row[k]:.2f}" if isinstance(row.get(k), float)
+                 else str(row.get(k, "")) for k in keys]
+        lines.append("| " + " | ".join(cells) + " |")
+    devices = ", ".join(str(d) for d in jax.devices())
+    lines += ["", f"Devices: {devices}; {platform.processor() or platform.machine()}, "
+                  f"JAX {jax.__version__}; {args.repeats} alternating rounds per pair."]
+    args.output.mkdir(parents=True, exist_ok=True)
+    write_report(args.output, "front", "\n".join(lines), rows, keys)
+    plot(rows, [s for s in args.sets if any(f"{s} s/pair" in r for r in rows)],
+         args.output / "front.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
