@@ -22,6 +22,7 @@ axis, one panel per set) into ``-o``, and records ``jax.devices()``.
 from __future__ import annotations
 
 import argparse
+import csv
 import platform
 import sys
 import time
@@ -115,6 +116,7 @@ def ahead_of_faster_peers(rows: list[dict], set_name: str) -> None:
 
 def plot(rows: list[dict], sets: list[str], path: Path) -> None:
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -130,6 +132,7 @@ def plot(rows: list[dict], sets: list[str], path: Path) -> None:
             axis.annotate(row["method"], (x, y), textcoords="offset points", xytext=(4, 4),
                           fontsize=8)
         axis.set_xscale("log")
+        axis.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         axis.set_xlabel("median time per pair (s, log)")
         axis.set_ylabel("bad 2.0, all pixels with ground truth (%)")
         axis.set_title(set_name)
@@ -151,7 +154,16 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="timed rounds per pair (3)")
     parser.add_argument("--bucket-step", type=int, default=64)
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results/front"))
+    parser.add_argument("--plot-only", action="store_true",
+                        help="redraw front.png from the front.csv in -o, running nothing")
     args = parser.parse_args(argv)
+    if args.plot_only:
+        with open(args.output / "front.csv", newline="") as handle:
+            rows = [{k: v if k in ("method", "kind") or v in ("", "True", "False") else float(v)
+                     for k, v in row.items() if v != ""} for row in csv.DictReader(handle)]
+        plot(rows, [s for s in args.sets if any(f"{s} s/pair" in r for r in rows)],
+             args.output / "front.png")
+        return 0
     if REFERENCE not in args.methods:
         parser.error(f"--methods must include {REFERENCE}, the reference of the time ratios")
     runners = _method_runners(args.methods, args.bucket_step)
