@@ -72,8 +72,8 @@ def make_method(
     Examples
     --------
     >>> method = make_method("gf")
-    >>> sorted(method_names())[:3]
-    ['bf', 'box', 'gf']
+    >>> sorted(method_names())[:4]
+    ['bf', 'bm', 'box', 'gf']
     """
     if name in PEERS:
         return PEERS[name].fn
