@@ -192,6 +192,10 @@ def _background_fill(disparity, valid, *, labels, num_segments, params):
     return fill_invalid(disparity, valid, radius=params.static.fill_radius)
 
 
+def _left_band_fill(disparity, valid, *, labels, num_segments, params):
+    return fill_invalid(disparity, valid, radius=params.static.fill_radius, left_band=True)
+
+
 def _plane_fill(disparity, valid, *, labels, num_segments, params):
     filled = _background_fill(disparity, valid, labels=labels, num_segments=num_segments,
                               params=params)
@@ -205,6 +209,8 @@ def _plane_fill(disparity, valid, *, labels, num_segments, params):
 FILLS: dict[str, Fill] = {
     "background": Fill(_background_fill, "the nearer-background valid disparity of the row, then "
                        "a median over the filled pixels (Eq. 9 as we read it)"),
+    "left-band": Fill(_left_band_fill, "the background fill, but the surface on the right where "
+                      "it has no match at the pixel's column (x < d), the left border's case"),
     "plane": Fill(_plane_fill, "a robust plane per superpixel through its valid pixels where "
                   "they support it, else the background fill", uses_segments=True),
 }
@@ -245,11 +251,11 @@ PRESETS: dict[str, Preset] = {
     "paper": Preset({}, "the paper's method: SSW aggregation, winner-takes-all, LR check, fill, "
                         "side-window median"),
     "accurate": Preset({"optimizer": "sgm", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0,
-                        "fill_radius": 4},
+                        "fill_radius": 4, "fill": "left-band"},
                        "side-window aggregation without the segment term, then semi-global "
-                       "optimisation of the aggregated cost (4 paths)"),
+                       "optimisation of the aggregated cost (4 paths), left-band fill"),
     "fast": Preset({"optimizer": "sgm-half", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0,
-                    "fill_radius": 4, "sgm_detail_weight": 4.0},
+                    "fill_radius": 4, "sgm_detail_weight": 4.0, "fill": "left-band"},
                    "accurate with the semi-global paths at half resolution, added back to the "
                    "aggregated cost weighted 4 (about 1.4x faster)"),
 }

@@ -103,7 +103,8 @@ def left_right_consistency(
     return left_right_distance(left_disparity, right_disparity) <= tolerance
 
 
-def fill_background(disparity: jax.Array, valid: jax.Array) -> jax.Array:
+def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool = False
+                    ) -> jax.Array:
     """Give each invalid pixel the smaller of the nearest valid disparities left and right of it.
 
     A side without a valid pixel is ignored; a row without any valid pixel gets 0.
@@ -112,6 +113,11 @@ def fill_background(disparity: jax.Array, valid: jax.Array) -> jax.Array:
     ----------
     disparity : float32 (H, W)
     valid : bool (H, W)
+    left_band : bool, keyword-only
+        Where the nearest valid disparity on the right, ``d_r``, exceeds the pixel's column
+        ``x`` (so that surface, carried leftwards, has no match in the right image: what makes
+        the pixel fail the check), take ``d_r`` rather than the smaller one: near the left
+        border the smaller one is usually a wrong match, not the background.
 
     Returns
     -------
@@ -137,11 +143,14 @@ def fill_background(disparity: jax.Array, valid: jax.Array) -> jax.Array:
     from_left = jnp.where(last_valid_left >= 0, from_left, jnp.inf)
     from_right = jnp.where(next_valid_right < width, from_right, jnp.inf)
     fill = jnp.minimum(from_left, from_right)
+    if left_band:
+        fill = jnp.where(jnp.isfinite(from_right) & (columns < from_right), from_right, fill)
     fill = jnp.where(jnp.isfinite(fill), fill, 0.0)
     return jnp.where(valid, disparity, fill)
 
 
-def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int) -> jax.Array:
+def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_band: bool = False
+                 ) -> jax.Array:
     """Eq. (9) as we read it: background fill, then a median over the filled pixels only.
 
     Parameters
@@ -150,12 +159,14 @@ def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int) -> jax.
     valid : bool (H, W)
     radius : int >= 0
         Median window radius; 0 keeps the background fill.
+    left_band : bool
+        See :func:`fill_background`.
 
     Returns
     -------
     float32 (H, W), dense; equal to ``disparity`` where ``valid``.
     """
-    filled = fill_background(disparity, valid)
+    filled = fill_background(disparity, valid, left_band=left_band)
     if radius == 0:
         return filled
     return jnp.where(valid, filled, median_filter(filled, radius=radius))

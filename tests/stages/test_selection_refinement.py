@@ -205,7 +205,7 @@ def test_left_right_consistency_matches_reference_on_random_maps():
 # filling
 
 
-def fill_background_reference(disparity, valid):
+def fill_background_reference(disparity, valid, left_band=False):
     out = disparity.astype(np.float64).copy()
     h, w = disparity.shape
     for y in range(h):
@@ -215,6 +215,8 @@ def fill_background_reference(disparity, valid):
             left = [disparity[y, i] for i in range(x - 1, -1, -1) if valid[y, i]][:1]
             right = [disparity[y, i] for i in range(x + 1, w) if valid[y, i]][:1]
             out[y, x] = min(left + right) if left + right else 0.0
+            if left_band and right and x < right[0]:
+                out[y, x] = right[0]  # the surface on the right has no match at column x
     return out
 
 
@@ -258,6 +260,18 @@ def test_fill_background_matches_reference_on_random_masks():
     v[2] = False
     ours = np.asarray(fill_background(jnp.asarray(d), jnp.asarray(v)))
     np.testing.assert_allclose(ours, fill_background_reference(d, v), rtol=0, atol=0)
+    ours = np.asarray(fill_background(jnp.asarray(d), jnp.asarray(v), left_band=True))
+    np.testing.assert_allclose(ours, fill_background_reference(d, v, left_band=True), rtol=0,
+                               atol=0)
+
+
+def test_left_band_fill_keeps_the_surface_that_has_no_match():
+    # A spurious match of 0 at x = 0, then pixels failing the check, then a surface at d = 5
+    # from x = 4: columns 1-3 are left of 5, where that surface has no match in the right view.
+    d = jnp.array([[0.0, 0.0, 0.0, 0.0, 5.0, 5.0, 1.0, 0.0, 1.0]])
+    v = jnp.array([[True, False, False, False, True, True, True, False, True]])
+    assert fill_background(d, v).tolist() == [[0, 0, 0, 0, 5, 5, 1, 1, 1]]
+    assert fill_background(d, v, left_band=True).tolist() == [[0, 5, 5, 5, 5, 5, 1, 1, 1]]
 
 
 @pytest.mark.parametrize("radius", [0, 1, 2])
