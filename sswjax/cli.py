@@ -157,13 +157,15 @@ def cmd_match(args) -> int:
     start = time.perf_counter()
     if wants_confidence(args):
         matched = sswjax.match_with_confidence(left, right, args.ndisp, min_disp=args.min_disp,
-                                               params=params, low_confidence=args.low_confidence)
+                                               params=params, low_confidence=args.low_confidence,
+                                               check_memory=False)  # guard_pair checked it
         disparity = matched.disparity
         if args.invalid_as_inf:
             disparity = invalid_as_inf(disparity, matched.validity)
         write_confidence_outputs(matched, confidence=args.confidence, validity=args.validity)
     else:
-        disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params)
+        disparity = sswjax.match(left, right, args.ndisp, min_disp=args.min_disp, params=params,
+                                 check_memory=False)  # guard_pair checked it
     seconds = time.perf_counter() - start
     _write_outputs(disparity, args.output, args.png, args.ndisp, min_disp=args.min_disp)
     _write_geometry_outputs(args, disparity, left, calib)

@@ -34,10 +34,9 @@ Conventions
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
-
-import functools
 
 from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_disparity
 from sswjax.stages.aggregation import segment_side_window_aggregation
