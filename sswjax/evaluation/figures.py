@@ -186,8 +186,8 @@ def comparison_figure(
         if label is not None:
             axes[r, 0].set_ylabel(label, fontsize=fontsize * 1.1)
         if stacked and r == 1:
-            axes[r, 0].text(0, 0.5, f"bad {threshold:g}:\nred = wrong\ngrey = right\n"
-                            "black = no ground truth", fontsize=fontsize, va="center",
+            axes[r, 0].text(0, 0.5, f"error > {threshold:g} px: red\n"
+                            f"error <= {threshold:g} px: grey\nno ground truth: black", fontsize=fontsize, va="center",
                             transform=axes[r, 0].transAxes)
     fig.tight_layout(pad=0.4)
     with atomic_output(path) as tmp:
