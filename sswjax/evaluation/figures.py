@@ -115,6 +115,7 @@ def comparison_figure(
     sparse_dilate: int = 0,
     labels: Sequence[str] | None = None,
     dpi: int = 80,
+    colors: int | None = None,
 ) -> None:
     """Write a PNG grid: per scene, left image, ground truth, each method's disparity and errors.
 
@@ -143,6 +144,9 @@ def comparison_figure(
         Row label of each scene (default its name).
     dpi : int
         Pixels per inch of the PNG.
+    colors : int, optional
+        Store the PNG with a palette of this many colours (2 to 256; a third of the size for
+        photographs at 256); default full RGB(A).
 
     Examples
     --------
@@ -159,6 +163,8 @@ def comparison_figure(
     labels = [s.name for s in scenes] if labels is None else list(labels)
     if len(labels) != len(scenes):
         raise ValueError(f"{len(labels)} labels for {len(scenes)} scenes")
+    if colors is not None and not 2 <= colors <= 256:
+        raise ValueError(f"colors must be between 2 and 256, got {colors}")
     methods = list(results)
     grid, heights = [], []
     for scene, label in zip(scenes, labels):
@@ -192,4 +198,10 @@ def comparison_figure(
     fig.tight_layout(pad=0.4)
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
+        if colors is not None:
+            from PIL import Image  # installed with matplotlib
+
+            with Image.open(tmp) as image:
+                palette = image.convert("RGB").quantize(colors)
+            palette.save(tmp, format="PNG", optimize=True)
     plt.close(fig)

@@ -72,6 +72,13 @@ def test_comparison_figure_stacked_mixed_shapes_and_sparse_truth(tmp_path):
     assert stacked_image.shape[0] > 1.5 * row_image.shape[0]
     red = (stacked_image[..., 0] > 200) & (stacked_image[..., 1] < 60)
     assert red.any()  # methods b and c are 3 and 6 px off: their error maps are red
+    palette = tmp_path / "palette.png"
+    comparison_figure(palette, scenes, results, stacked=True, colors=16)
+    from PIL import Image
+
+    with Image.open(palette) as image:
+        assert image.mode == "P" and len(image.getcolors()) <= 16
+    assert iio.imread(palette).shape[:2] == stacked_image.shape[:2]
 
 
 def test_comparison_figure_refuses_missing_results_and_labels(tmp_path):
@@ -80,6 +87,8 @@ def test_comparison_figure_refuses_missing_results_and_labels(tmp_path):
     results = _results([_scene("other", (20, 30), sparse=False)], ["a"], 0.0)
     with pytest.raises(ValueError, match="no result for scene 'one'"):
         comparison_figure(tmp_path / "x.png", scenes, results)
+    with pytest.raises(ValueError, match="colors"):
+        comparison_figure(tmp_path / "x.png", scenes, _results(scenes, ["a"], 0.0), colors=1)
     with pytest.raises(ValueError, match="labels"):
         comparison_figure(tmp_path / "x.png", scenes, _results(scenes, ["a"], 0.0),
                           labels=["a", "b"])
