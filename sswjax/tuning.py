@@ -47,17 +47,26 @@ from jax.sharding import NamedSharding, PartitionSpec
 
 from sswjax.batching import BATCH_AXIS, device_mesh, pad_batch
 from sswjax.params import DynamicParams, Params, StaticParams
-from sswjax.pipeline import aggregated_cost
+from sswjax.pipeline import aggregated_cost, superpixels
+from sswjax.registry import OPTIMIZERS
 from sswjax.stages.selection import soft_argmin
 
 WEIGHTS = ("tad_weight", "gradient_weight", "census_weight")
 TRUNCATION_RANGES = {"tad_truncation": (0.002, 0.3), "gradient_truncation": (0.005, 1.0)}
+SOFTPLUS_FLOORS = {"segment_weight": 0.0, "sgm_p1": 0.0, "sgm_p2": 0.0, "sgm_sigma": 1e-3}
+"""Fields searched through ``floor + softplus(raw)``: >= their floor (``sgm_sigma`` divides)."""
 SEARCHED = WEIGHTS + tuple(TRUNCATION_RANGES) + ("segment_weight",)
-"""Dynamic fields searched by gradient."""
+"""Dynamic fields searched by gradient for the paper's pipeline (the default ``searched``)."""
+SGM_SEARCHED = tuple(TRUNCATION_RANGES) + ("sgm_p1", "sgm_p2", "sgm_sigma")
+"""Dynamic fields searched through the semi-global optimiser (``optimizer="sgm"``): the penalties
+and the cost truncations; the cost weights stay fixed (searching them overfits, tuning/README)."""
 FIXED = ("slic_compactness", "lr_tolerance")
 """Dynamic fields with no useful gradient on the soft path: held fixed."""
 RAW_KEYS = ("weight_logits", "tad_truncation", "gradient_truncation", "segment_weight",
             "temperature")
+"""Raw keys of the default (paper) search space."""
+ALL_RAW_KEYS = RAW_KEYS + ("sgm_p1", "sgm_p2", "sgm_sigma")
+"""Every raw key a search space can have (what ``freeze`` may name)."""
 MIN_TEMPERATURE = 1e-4
 HUBER_DELTA = 1.0
 
@@ -72,40 +81,94 @@ def _logit(p):
     return np.log(p) - np.log1p(-p)
 
 
-def to_unconstrained(dynamic: DynamicParams, *, temperature: float = 0.02) -> dict:
-    """Raw (unconstrained) search variables of ``dynamic`` and a soft-argmin temperature.
+def raw_keys(searched=SEARCHED) -> tuple[str, ...]:
+    """The raw keys of the search space of the dynamic fields ``searched``.
 
-    The weights are normalised to sum to 1 (WTA does not change); their logits are centred.
+    The three cost weights are searched together (one ``"weight_logits"`` key) or not at all;
+    ``"temperature"`` (the soft-argmin's) is always there.
+
+    >>> raw_keys(SGM_SEARCHED)
+    ('tad_truncation', 'gradient_truncation', 'sgm_p1', 'sgm_p2', 'sgm_sigma', 'temperature')
     """
-    weights = np.array([float(getattr(dynamic, k)) for k in WEIGHTS], np.float64)
-    if weights.sum() <= 0:
-        raise ValueError("tad, gradient and census weights must not all be zero")
-    logits = np.log(np.maximum(weights / weights.sum(), 1e-6))
-    raw = {"weight_logits": jnp.asarray(logits - logits.mean(), jnp.float32)}
-    for name, (low, high) in TRUNCATION_RANGES.items():
-        value = float(getattr(dynamic, name))
-        raw[name] = jnp.asarray(_logit((value - low) / (high - low)), jnp.float32)
-    raw["segment_weight"] = jnp.asarray(_softplus_inverse(float(dynamic.segment_weight)), jnp.float32)
+    searched = tuple(searched)
+    weights = [k for k in searched if k in WEIGHTS]
+    if weights and len(weights) != len(WEIGHTS):
+        raise ValueError(f"the cost weights are searched all together or not at all, got {weights}")
+    unknown = [k for k in searched
+               if k not in WEIGHTS and k not in TRUNCATION_RANGES and k not in SOFTPLUS_FLOORS]
+    if unknown:
+        raise ValueError(f"no reparametrisation for {unknown}; searchable: "
+                         f"{WEIGHTS + tuple(TRUNCATION_RANGES) + tuple(SOFTPLUS_FLOORS)}")
+    return (("weight_logits",) if weights else ()) + tuple(
+        k for k in searched if k not in WEIGHTS) + ("temperature",)
+
+
+def to_unconstrained(dynamic: DynamicParams, *, temperature: float = 0.02,
+                     searched=SEARCHED) -> dict:
+    """Raw (unconstrained) search variables of the fields ``searched`` of ``dynamic``, and of a
+    soft-argmin temperature.
+
+    Reparametrisation: the weights (if searched) a softmax simplex, normalised to sum to 1 (WTA
+    does not change) with centred logits; the truncations a sigmoid into
+    :data:`TRUNCATION_RANGES`; ``segment_weight`` and the SGM penalties ``floor + softplus``
+    (:data:`SOFTPLUS_FLOORS`). The keys are :func:`raw_keys` of ``searched``; the others stay
+    at their ``base`` values in :func:`from_unconstrained`.
+
+    Examples
+    --------
+    >>> raw = to_unconstrained(DynamicParams(sgm_p2=0.8), searched=SGM_SEARCHED)
+    >>> round(float(from_unconstrained(raw)[0].sgm_p2), 4)
+    0.8
+    """
+    raw = {}
+    for key in raw_keys(searched):
+        if key == "weight_logits":
+            weights = np.array([float(getattr(dynamic, k)) for k in WEIGHTS], np.float64)
+            if weights.sum() <= 0:
+                raise ValueError("tad, gradient and census weights must not all be zero")
+            logits = np.log(np.maximum(weights / weights.sum(), 1e-6))
+            raw[key] = jnp.asarray(logits - logits.mean(), jnp.float32)
+        elif key in TRUNCATION_RANGES:
+            low, high = TRUNCATION_RANGES[key]
+            raw[key] = jnp.asarray(_logit((float(getattr(dynamic, key)) - low) / (high - low)),
+                                   jnp.float32)
+        elif key in SOFTPLUS_FLOORS:
+            value = float(getattr(dynamic, key)) - SOFTPLUS_FLOORS[key]
+            raw[key] = jnp.asarray(_softplus_inverse(value), jnp.float32)
     raw["temperature"] = jnp.asarray(_softplus_inverse(temperature - MIN_TEMPERATURE), jnp.float32)
     return raw
 
 
 def from_unconstrained(raw: dict, *, base: DynamicParams = DynamicParams()
                        ) -> tuple[DynamicParams, jax.Array]:
-    """Constrained ``DynamicParams`` (fields not searched taken from ``base``) and the temperature."""
-    weights = jax.nn.softmax(raw["weight_logits"])
-    values = dict(zip(WEIGHTS, (weights[0], weights[1], weights[2])))
-    for name, (low, high) in TRUNCATION_RANGES.items():
-        values[name] = low + (high - low) * jax.nn.sigmoid(raw[name])
-    values["segment_weight"] = jax.nn.softplus(raw["segment_weight"])
+    """Constrained ``DynamicParams`` (fields not in ``raw`` taken from ``base``) and the
+    temperature; the inverse of :func:`to_unconstrained` for any search space."""
+    values = {}
+    for key, value in raw.items():
+        if key == "weight_logits":
+            weights = jax.nn.softmax(value)
+            values.update(zip(WEIGHTS, (weights[0], weights[1], weights[2])))
+        elif key in TRUNCATION_RANGES:
+            low, high = TRUNCATION_RANGES[key]
+            values[key] = low + (high - low) * jax.nn.sigmoid(value)
+        elif key in SOFTPLUS_FLOORS:
+            values[key] = SOFTPLUS_FLOORS[key] + jax.nn.softplus(value)
+        elif key != "temperature":
+            raise ValueError(f"unknown raw key {key!r}; expected some of {ALL_RAW_KEYS}")
     temperature = MIN_TEMPERATURE + jax.nn.softplus(raw["temperature"])
     return base._replace(**values), temperature
+
+
+def searched_fields(raw: dict) -> tuple[str, ...]:
+    """The dynamic fields a raw dict sets (the inverse of :func:`raw_keys`)."""
+    return tuple(f for k in raw if k != "temperature"
+                 for f in (WEIGHTS if k == "weight_logits" else (k,)))
 
 
 def raw_to_params(raw: dict, base: Params) -> Params:
     """``base`` with its searched dynamic fields replaced by those of ``raw`` (plain floats)."""
     dynamic, _ = from_unconstrained(raw, base=base.dynamic)
-    return base.replace(**{k: float(getattr(dynamic, k)) for k in SEARCHED})
+    return base.replace(**{k: float(getattr(dynamic, k)) for k in searched_fields(raw)})
 
 
 def valid_mask(ground_truth, nonocc, *, ndisp) -> jax.Array:
@@ -118,19 +181,72 @@ def valid_mask(ground_truth, nonocc, *, ndisp) -> jax.Array:
     return finite & nonocc & (safe >= 0) & (safe <= ndisp - 1) & (columns - safe >= 0)
 
 
+DIFFERENTIABLE_STATIC = {"sgm_dtype": "float32"}
+"""Static switches whose inference value is not differentiable, and the value the search runs
+with (the int16 paths of :func:`sswjax.stages.sgm.semi_global` round: zero gradients). A field
+that ``StaticParams`` does not have is skipped."""
+
+
+def differentiable_static(static: StaticParams) -> StaticParams:
+    """``static`` with :data:`DIFFERENTIABLE_STATIC` applied (what :func:`soft_disparity` runs).
+
+    >>> differentiable_static(StaticParams()) == StaticParams()._replace(
+    ...     **{k: v for k, v in DIFFERENTIABLE_STATIC.items() if k in StaticParams._fields})
+    True
+    """
+    return static._replace(**{k: v for k, v in DIFFERENTIABLE_STATIC.items()
+                              if k in static._fields})
+
+
+OUT_OF_RANGE_COST = 1e4
+"""Cost of the padded disparities ``>= scene_ndisp``: high but finite, as the pipeline's (the
+optimiser's recursion turns +inf into NaN)."""
+
+
 def soft_disparity(raw, left, right, *, static: StaticParams, ndisp: int, base: DynamicParams,
                    scene_ndisp=None) -> jax.Array:
-    """Soft-argmin disparity ``(H, W)`` of the inference cost with the parameters of ``raw``.
+    """Soft-argmin disparity ``(H, W)`` of the inference volume with the parameters of ``raw``.
+
+    The volume is that of the pipeline before its winner-takes-all: the aggregated cost
+    (:func:`sswjax.pipeline.aggregated_cost`), then, when ``static.optimizer`` is not
+    ``"none"``, the optimiser of :data:`sswjax.registry.OPTIMIZERS` (e.g. ``"sgm"``:
+    :func:`sswjax.stages.sgm.semi_global`, differentiable in its penalties), as
+    ``sswjax.pipeline`` applies it.
 
     ``scene_ndisp`` (traced scalar, optional) masks disparities ``>= scene_ndisp`` so that a
     common, padded ``ndisp`` gives each scene its own range (the cost of every slice is computed
-    and aggregated independently, so the kept slices are those of the scene's own ``ndisp``).
+    and aggregated independently, so the kept slices are those of the scene's own ``ndisp``;
+    as in the pipeline, the optimiser sees them at :data:`OUT_OF_RANGE_COST`). The static
+    switches of :data:`DIFFERENTIABLE_STATIC` are set to their differentiable values.
+
+    Parameters
+    ----------
+    raw : dict of float32 arrays
+        Search variables (:func:`to_unconstrained`).
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    static : StaticParams
+    ndisp : int
+        Disparities of the volume (static).
+    base : DynamicParams
+        Values of the fields ``raw`` does not set.
+    scene_ndisp : int32 scalar, optional
+
+    Returns
+    -------
+    float32 (H, W), in [0, ndisp - 1].
     """
     dynamic, temperature = from_unconstrained(raw, base=base)
-    cost = aggregated_cost(left, right, Params(dynamic=dynamic, static=static), ndisp=ndisp)
+    params = Params(dynamic=dynamic, static=differentiable_static(static))
+    cost = aggregated_cost(left, right, params, ndisp=ndisp)
+    d = jnp.arange(ndisp)[:, None, None]
     if scene_ndisp is not None:
-        d = jnp.arange(ndisp)[:, None, None]
-        cost = jnp.where(d < scene_ndisp, cost, 1e4)
+        cost = jnp.where(d < scene_ndisp, cost, OUT_OF_RANGE_COST)
+    optimizer = OPTIMIZERS[static.optimizer]
+    if optimizer.fn is not None:
+        labels, num_segments = superpixels(left, params)
+        cost = optimizer.fn(cost, left, labels=labels if num_segments else None, params=params)
+        if scene_ndisp is not None:
+            cost = jnp.where(d < scene_ndisp, cost, OUT_OF_RANGE_COST)
     return soft_argmin(cost, temperature=temperature)
 
 
@@ -194,12 +310,12 @@ def freeze_labels(frozen):
     """optax labels of a ``raw`` dict: ``"frozen"`` for the keys in ``frozen``, else ``"train"``.
 
     Returns a function of ``raw`` (as ``optax.multi_transform`` takes it). Raises ``ValueError``
-    for a key not in :data:`RAW_KEYS`.
+    for a key not in :data:`ALL_RAW_KEYS`.
     """
     frozen = tuple(frozen)
-    unknown = sorted(set(frozen) - set(RAW_KEYS))
+    unknown = sorted(set(frozen) - set(ALL_RAW_KEYS))
     if unknown:
-        raise ValueError(f"unknown raw keys {unknown}; expected some of {RAW_KEYS}")
+        raise ValueError(f"unknown raw keys {unknown}; expected some of {ALL_RAW_KEYS}")
     return lambda raw: {k: "frozen" if k in frozen else "train" for k in raw}
 
 
@@ -248,39 +364,111 @@ def make_update_step(optimizer, *, static: StaticParams, ndisp: int, base: Dynam
     return update_step
 
 
-# --- crops ---------------------------------------------------------------------------------
+# --- folds and crops -----------------------------------------------------------------------
 
 
-def random_crops(scenes, rng: np.random.Generator, *, batch: int, height: int, width: int):
+def dataset_folds(names) -> list[tuple[str, list[str]]]:
+    """Leave-one-dataset-out folds: ``[(held_out, [the others]), ...]``, one per data set.
+
+    The search of each fold sees crops of the other sets only; its held-out set is then scored
+    with the full pipeline (``tuning/search.py --folds datasets``).
+
+    Parameters
+    ----------
+    names : sequence of str
+        At least two distinct data set names.
+
+    Returns
+    -------
+    list of (str, list of str), in the order of ``names``.
+
+    Examples
+    --------
+    >>> dataset_folds(["MiddEval3", "KITTI2012", "Middlebury2001"])[1]
+    ('KITTI2012', ['MiddEval3', 'Middlebury2001'])
+    """
+    names = list(names)
+    if len(names) < 2 or len(set(names)) != len(names):
+        raise ValueError(f"need at least two distinct data sets, got {names}")
+    return [(held, [n for n in names if n != held]) for held in names]
+
+
+
+
+MAX_CROP_TRIES = 50
+"""Draws of a crop position before :func:`random_crops` takes the last one drawn."""
+
+
+def _crop_valid(scene, sl, width: int) -> np.ndarray:
+    """The loss's pixels of a crop: known ground truth, non-occluded (all known pixels when the
+    scene has no mask), inside the scene's range, match inside the crop."""
+    gt = scene.ground_truth[sl]
+    finite = np.isfinite(gt)
+    safe = np.where(finite, gt, 0.0)
+    columns = np.arange(width)[None, :]
+    nonocc = True if scene.mask is None else scene.mask[sl] == 255
+    return finite & nonocc & (safe <= scene.ndisp - 1) & (columns - safe >= 0)
+
+
+def random_crops(scenes, rng: np.random.Generator, *, batch: int, height: int, width: int,
+                 min_valid: float = 0.0):
     """A batch of fixed-size random crops ``(lefts, rights, gts, valids, scene_ndisps)``.
 
-    ``scenes`` are :class:`~sswjax.data.datasets.StereoScene` with float32 images (see
-    :func:`prepare_scene`). Crops are drawn uniformly over scenes, then positions.
+    ``scenes`` are :class:`~sswjax.data.datasets.StereoScene` with float32 images of one
+    channel count (see :func:`prepare_scene`). Crops are drawn uniformly over scenes, then
+    positions. ``min_valid`` > 0 (for sparse ground truth such as KITTI's) redraws the position
+    until at least that share of the crop's pixels are valid (at most :data:`MAX_CROP_TRIES`
+    draws); 0 draws once, as before it existed (the same random stream).
+
+    Returns
+    -------
+    float32 (B, h, w, C), float32 (B, h, w, C), float32 (B, h, w) (unknown = 0),
+    bool (B, h, w), int32 (B,)
+
+    Examples
+    --------
+    >>> from sswjax.data.datasets import StereoScene
+    >>> image = np.zeros((30, 60, 1), np.float32)
+    >>> gt = np.full((30, 60), np.nan, np.float32); gt[20:] = 2.0    # known at the bottom only
+    >>> scene = StereoScene("s", image, image, 8, gt, None, None)
+    >>> crops = random_crops([scene], np.random.default_rng(0), batch=4, height=10, width=20,
+    ...                      min_valid=0.5)
+    >>> bool(crops[3].mean(axis=(1, 2)).min() >= 0.5)
+    True
     """
     out = [[], [], [], [], []]
     for _ in range(batch):
         s = scenes[rng.integers(len(scenes))]
         h, w = s.left.shape[:2]
-        y = int(rng.integers(0, h - height + 1))
-        x = int(rng.integers(0, w - width + 1))
-        sl = (slice(y, y + height), slice(x, x + width))
+        for _ in range(MAX_CROP_TRIES if min_valid > 0 else 1):
+            y = int(rng.integers(0, h - height + 1))
+            x = int(rng.integers(0, w - width + 1))
+            sl = (slice(y, y + height), slice(x, x + width))
+            valid = _crop_valid(s, sl, width)
+            if valid.mean() >= min_valid:
+                break
         out[0].append(s.left[sl])
         out[1].append(s.right[sl])
         out[2].append(np.where(np.isfinite(s.ground_truth[sl]), s.ground_truth[sl], 0.0).astype(np.float32))
-        gt = s.ground_truth[sl]
-        finite = np.isfinite(gt)
-        safe = np.where(finite, gt, 0.0)
-        columns = np.arange(width)[None, :]
-        out[3].append(finite & (s.mask[sl] == 255) & (safe <= s.ndisp - 1) & (columns - safe >= 0))
+        out[3].append(valid)
         out[4].append(s.ndisp)
     return tuple(np.stack(a) for a in out[:4]) + (np.asarray(out[4], np.int32),)
 
 
-def prepare_scene(scene):
-    """A scene with float32 ``[0, 1]`` images, as the pipeline takes them."""
+def prepare_scene(scene, *, channels: int | None = None):
+    """A scene with float32 ``[0, 1]`` images, as the pipeline takes them.
+
+    ``channels=3`` repeats a gray pair into three equal channels, so that gray and colour
+    scenes share a compiled step: every stage of the cost and of the optimiser reads the
+    channel mean or the BT.601 luma, which are the gray value again (up to rounding).
+    """
     from sswjax.api import prepare_pair
 
     left, right = prepare_pair(scene.left, scene.right)
+    if channels is not None and left.shape[-1] != channels:
+        if (left.shape[-1], channels) != (1, 3):
+            raise ValueError(f"cannot turn {left.shape[-1]} channels into {channels}")
+        left, right = np.repeat(left, 3, axis=-1), np.repeat(right, 3, axis=-1)
     return scene._replace(left=left, right=right)
 
 
@@ -332,9 +520,11 @@ def load_checkpoint(path, *, opt_state_like):
 
 
 __all__ = [
-    "FIXED", "RAW_KEYS", "SEARCHED", "TRUNCATION_RANGES", "batch_loss", "crop_segments",
-    "freeze_labels", "from_unconstrained", "load_checkpoint", "loss", "make_optimizer",
-    "make_update_step", "prepare_scene", "random_crops",
-    "raw_to_params", "save_checkpoint", "shard_crops", "smooth_l1", "soft_disparity",
-    "to_unconstrained", "valid_mask",
+    "ALL_RAW_KEYS", "DIFFERENTIABLE_STATIC", "FIXED", "OUT_OF_RANGE_COST", "RAW_KEYS",
+    "SEARCHED", "SGM_SEARCHED", "SOFTPLUS_FLOORS", "TRUNCATION_RANGES", "batch_loss",
+    "crop_segments", "dataset_folds", "differentiable_static", "freeze_labels",
+    "from_unconstrained", "load_checkpoint", "loss", "make_optimizer", "make_update_step",
+    "prepare_scene", "random_crops", "raw_keys", "raw_to_params", "save_checkpoint",
+    "searched_fields", "shard_crops", "smooth_l1", "soft_disparity", "to_unconstrained",
+    "valid_mask",
 ]

@@ -218,3 +218,83 @@ def test_sharded_step_same_on_one_and_two_devices(run_on_devices):
             np.testing.assert_allclose(step_two[key], step_one[key], rtol=1e-5, atol=1e-7,
                                        err_msg=key)
     assert one[1]["loss"] != one[0]["loss"]  # the parameters moved
+
+
+# --- the search through the semi-global optimiser, and the data-set folds ------------------
+
+SGM_STATIC = STATIC._replace(n_segments=0, optimizer="sgm", sgm_paths=4)
+
+
+def test_sgm_objective_gradients_finite_nonzero():
+    """Soft-argmin over the SGM-optimised volume: finite, non-zero gradients with respect to
+    the penalties (which enter only through the optimiser) and the truncations (the int16
+    paths of inference, if the default, would round them to zero: the search runs the float32
+    ones)."""
+    lefts, rights, gts, valids, nds = _crops((3,))
+    base = DynamicParams(sgm_p1=0.05, sgm_p2=0.8, sgm_sigma=0.05)
+    raw = tuning.to_unconstrained(base, temperature=0.08, searched=tuning.SGM_SEARCHED)
+    assert set(raw) == {"tad_truncation", "gradient_truncation", "sgm_p1", "sgm_p2", "sgm_sigma",
+                        "temperature"}
+    value, grads = jax.jit(jax.value_and_grad(
+        lambda r: tuning.batch_loss(r, lefts, rights, gts, valids, nds, static=SGM_STATIC,
+                                    ndisp=NDISP, base=base)))(raw)
+    assert np.isfinite(float(value)) and float(value) > 0
+    for key in raw:
+        g = float(grads[key])
+        assert np.isfinite(g) and abs(g) > 1e-7, (key, g)
+    # a non-differentiable inference switch is replaced in the search
+    for key, value in tuning.DIFFERENTIABLE_STATIC.items():
+        if key in SGM_STATIC._fields:
+            assert getattr(tuning.differentiable_static(SGM_STATIC), key) == value
+
+
+def test_search_spaces_round_trip():
+    dynamic = DynamicParams(sgm_p1=0.03, sgm_p2=1.1, sgm_sigma=0.02, tad_truncation=0.05)
+    raw = tuning.to_unconstrained(dynamic, temperature=0.1, searched=tuning.SGM_SEARCHED)
+    assert tuple(raw) == tuning.raw_keys(tuning.SGM_SEARCHED)
+    assert tuning.searched_fields(raw) == tuning.SGM_SEARCHED
+    back, temperature = tuning.from_unconstrained(raw, base=DynamicParams())
+    for name in tuning.SGM_SEARCHED:
+        assert float(getattr(back, name)) == pytest.approx(float(getattr(dynamic, name)), rel=1e-4)
+    assert back.tad_weight == DynamicParams().tad_weight  # not searched: from base
+    assert float(temperature) == pytest.approx(0.1, rel=1e-4)
+    params = tuning.raw_to_params({k: v - 30.0 for k, v in raw.items()}, Params())
+    assert params.dynamic.sgm_sigma >= tuning.SOFTPLUS_FLOORS["sgm_sigma"]
+    assert params.dynamic.sgm_p1 >= 0 and params.dynamic.census_weight == Params().dynamic.census_weight
+    with pytest.raises(ValueError, match="all together"):
+        tuning.raw_keys(("tad_weight", "sgm_p1"))
+    with pytest.raises(ValueError, match="no reparametrisation"):
+        tuning.raw_keys(("lr_tolerance",))
+    # the freeze keys of the SGM space are accepted
+    tuning.make_optimizer(0.05, frozen=("sgm_sigma",))
+
+
+def test_dataset_folds_leave_one_out():
+    names = ["MiddEval3", "KITTI2012", "Middlebury2001"]
+    folds = tuning.dataset_folds(names)
+    assert [held for held, _ in folds] == names
+    for held, others in folds:
+        assert held not in others and sorted(others + [held]) == sorted(names)
+    with pytest.raises(ValueError):
+        tuning.dataset_folds(["a"])
+    with pytest.raises(ValueError):
+        tuning.dataset_folds(["a", "a"])
+
+
+def test_random_crops_sparse_ground_truth():
+    """KITTI-like: ground truth on the bottom rows only, no mask; gray repeated to 3 channels."""
+    from sswjax.data.datasets import StereoScene
+
+    rng = np.random.default_rng(1)
+    image = (rng.random((40, 60)) * 255).astype(np.uint8)
+    gt = np.full((40, 60), np.nan, np.float32)
+    gt[32:] = 3.0
+    scene = tuning.prepare_scene(StereoScene("k", image, image, 8, gt, None, None), channels=3)
+    assert scene.left.shape == (40, 60, 3) and np.array_equal(scene.left[..., 0], scene.left[..., 2])
+    lefts, _, _, valids, _ = tuning.random_crops([scene], rng, batch=6, height=12, width=20,
+                                                 min_valid=0.2)
+    assert lefts.shape == (6, 12, 20, 3)
+    assert valids.mean(axis=(1, 2)).min() >= 0.2
+    _, _, _, once, _ = tuning.random_crops([scene], np.random.default_rng(1), batch=20, height=12,
+                                           width=20)
+    assert once.mean(axis=(1, 2)).min() < 0.2  # without min_valid some crops miss it

@@ -38,13 +38,29 @@ import sswjax
 import sswjax.data.datasets
 from sswjax import tuning
 from sswjax.evaluation.metrics import weighted_average
-from sswjax.evaluation.runner import evaluate_scenes
+from sswjax.data.layouts import detect_layout, load_scenes
+from sswjax.evaluation.runner import MIDDEVAL3_SCORING, SCORINGS, evaluate_scenes
 from sswjax.params import load_params, save_params
 from sswjax.pipeline import ssw_disparity
 
 ROOT = Path(__file__).resolve().parent
+DATASETS = [ROOT.parent.parent / "shared" / "data" / name
+             for name in ("MiddEval3", "KITTI2012", "Middlebury2001")]
 BUCKETS = ((96, 128), (192, 224))  # (padded ndisp, crop width)
 DATE = "2026-11-22"
+
+
+def folds_option(text: str):
+    """``--folds``: a positive number of scene folds, or ``"datasets"``."""
+    if text == "datasets":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'datasets', got {text!r}") from None
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"need at least 2 folds, got {value}")
+    return value
 
 
 def bucket_of(scene) -> int:
@@ -79,8 +95,15 @@ def crop_wta_bad2(params, scenes, crops_by_bucket, static_by_bucket):
     return 100.0 * bad / max(total, 1)
 
 
-def run_search(train, val, out: Path, base, args, desc):
-    """Search on ``train`` scenes; log held-out crop WTA bad 2.0 on ``val`` (or train) scenes."""
+def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARCHED):
+    """Search the fields ``searched`` on ``train``; log held-out crop WTA bad 2.0 on ``val``
+    (or train) scenes.
+
+    ``train`` is a list of scenes, or a list of groups of scenes (one per data set): then each
+    step first draws a group uniformly, so that no set outweighs the others by its scene count.
+    """
+    groups = train if train and isinstance(train[0], list) else [train]
+    train = [s for g in groups for s in g]
     out.mkdir(parents=True, exist_ok=True)
     ckpt, log_path = out / "checkpoint.pkl", out / "log.json"
     area = float(np.mean([s.left.shape[0] * s.left.shape[1] for s in train]))
@@ -88,12 +111,14 @@ def run_search(train, val, out: Path, base, args, desc):
         b: base.static._replace(n_segments=tuning.crop_segments(base.static.n_segments, args.crop * w, area))
         for b, (_, w) in enumerate(BUCKETS)
     }
-    by_bucket = {b: [s for s in train if bucket_of(s) == b] for b in range(len(BUCKETS))}
-    probs = np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float)
-    probs /= probs.sum()
+    by_group = [{b: [s for s in g if bucket_of(s) == b] for b in range(len(BUCKETS))} for g in groups]
+    group_probs = []
+    for by_bucket in by_group:
+        probs = np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float)
+        group_probs.append(probs / probs.sum())
     # Adam; the --freeze keys get optax.set_to_zero() (multi_transform), so they never move
     optimizer = tuning.make_optimizer(args.lr, frozen=args.freeze)
-    raw = tuning.to_unconstrained(base.dynamic, temperature=args.temperature)
+    raw = tuning.to_unconstrained(base.dynamic, temperature=args.temperature, searched=searched)
     opt_state = optimizer.init(raw)
     rng = np.random.default_rng(args.seed)
     log = {"train_scenes": [s.name for s in train], "val_scenes": [s.name for s in val],
@@ -109,6 +134,7 @@ def run_search(train, val, out: Path, base, args, desc):
         return {k: np.asarray(v, np.float32) for k, v in ema.items()}
 
     if step >= args.steps:
+        log["temperature"] = float(tuning.from_unconstrained(averaged(), base=base.dynamic)[1])
         return tuning.raw_to_params(averaged(), base), log
     # fixed validation crops (own RNG, so resuming does not change them)
     vrng = np.random.default_rng(args.seed + 1000)
@@ -116,10 +142,11 @@ def run_search(train, val, out: Path, base, args, desc):
     for b, (_, w) in enumerate(BUCKETS):
         pool = [s for s in val if bucket_of(s) == b]
         n = args.val_crops if b == 0 else max(1, args.val_crops // 4)
-        vcrops[b] = tuning.random_crops(pool, vrng, batch=n, height=args.crop, width=w) if pool else None
+        vcrops[b] = tuning.random_crops(pool, vrng, batch=n, height=args.crop, width=w,
+                                        min_valid=args.min_valid) if pool else None
     steps_fn = {b: tuning.make_update_step(optimizer, static=statics[b], ndisp=BUCKETS[b][0],
                                            base=base.dynamic)
-                for b in by_bucket if by_bucket[b]}
+                for b in range(len(BUCKETS)) if any(g[b] for g in by_group)}
 
     def validate(at):
         value = crop_wta_bad2(tuning.raw_to_params(averaged(), base), val, vcrops, statics)
@@ -132,9 +159,11 @@ def run_search(train, val, out: Path, base, args, desc):
     bar = tqdm(total=args.steps, initial=step, desc=desc, unit="step")
     start = time.perf_counter()
     while step < args.steps:
-        b = int(rng.choice(len(BUCKETS), p=probs))
-        batch = tuning.random_crops(by_bucket[b], rng, batch=args.batch, height=args.crop,
-                                    width=BUCKETS[b][1])
+        # one group (the scenes CV) draws no group index: the random stream of earlier runs
+        g = int(rng.integers(len(groups))) if len(groups) > 1 else 0
+        b = int(rng.choice(len(BUCKETS), p=group_probs[g]))
+        batch = tuning.random_crops(by_group[g][b], rng, batch=args.batch, height=args.crop,
+                                    width=BUCKETS[b][1], min_valid=args.min_valid)
         raw, opt_state, value = steps_fn[b](raw, opt_state, batch)
         step += 1
         ema = {k: args.ema * ema[k] + (1 - args.ema) * np.asarray(raw[k]) for k in ema}
@@ -158,13 +187,13 @@ def run_search(train, val, out: Path, base, args, desc):
     return params, log
 
 
-def evaluate(params, scenes, path: Path, desc):
+def evaluate(params, scenes, path: Path, desc, *, scoring=MIDDEVAL3_SCORING):
     """Per-scene metrics of the full WTA pipeline (cached in ``path``)."""
     if path.exists():
         return json.loads(path.read_text())
     method = lambda l, r, n: sswjax.match(l, r, n, params=params)  # noqa: E731
     print(f"evaluating {desc} on {len(scenes)} scenes", flush=True)
-    results = evaluate_scenes(method, scenes, progress=True)
+    results = evaluate_scenes(method, scenes, progress=True, scoring=scoring)
     data = {r.scene: r.metrics for r in results}
     write_json(path, data)
     return data
@@ -175,19 +204,105 @@ def weighted(per_scene: dict) -> dict:
                      for k in ("bad2.0", "bad1.0", "bad0.5")} for region in ("nonocc", "all")}
 
 
+def summarise(per_scene: dict, scoring) -> dict:
+    """``{region: {metric: average}}`` of per-scene metrics under a data set's ``scoring``
+    (:data:`sswjax.evaluation.runner.SCORINGS`: MiddEval3 weighted, the others plain means)."""
+    out = {}
+    for region in ("nonocc", "all"):
+        if not all(region in m for m in per_scene.values()):
+            continue
+        out[region] = {}
+        for key in scoring.keys:
+            values = {s: m[region][key] for s, m in per_scene.items()}
+            out[region][key] = (weighted_average(values, weights=scoring.weights)
+                                if scoring.average == "weighted"
+                                else float(np.mean(list(values.values()))))
+    return out
+
+
+def base_params(args):
+    """The starting parameters and the searched fields of ``--pipeline``."""
+    if args.pipeline == "paper":
+        return load_params(args.init), tuning.SEARCHED
+    return sswjax.preset(args.pipeline), tuning.SGM_SEARCHED
+
+
+def run_dataset_cv(args, base, searched, t0):
+    """Leave-one-dataset-out: search on crops of the other sets, run the full pipeline on the
+    held-out set with the searched and with the starting parameters; ``results.json``."""
+    sets = {}
+    for folder in args.datasets:
+        layout = detect_layout(folder)
+        raw_scenes = load_scenes(folder, layout=layout)
+        sets[layout.name] = (raw_scenes, SCORINGS[layout.scoring])
+    names = list(sets)
+    largest = BUCKETS[-1][0]
+    prepared, dropped = {}, {}
+    for name, (raw_scenes, _) in sets.items():
+        prepared[name] = [tuning.prepare_scene(s, channels=3) for s in raw_scenes if s.ndisp <= largest]
+        dropped[name] = [s.name for s in raw_scenes if s.ndisp > largest]
+    print("data sets:", {n: len(p) for n, p in prepared.items()}, "not searched on (ndisp > "
+          f"{largest}):", dropped, flush=True)
+    results = {"pipeline": args.pipeline, "searched_fields": list(searched),
+               "not_searched_on": dropped, "folds": []}
+    for held, others in tuning.dataset_folds(names):
+        out = args.out / f"fold-{held}"
+        params, log = run_search([prepared[n] for n in others], prepared[held], out, base, args,
+                                 f"held out {held}", searched=searched)
+        save_params(out / "params.json", params)
+        raw_scenes, scoring = sets[held]
+        searched_eval = evaluate(params, raw_scenes, args.out / f"eval_{held}_searched.json",
+                                 f"searched without {held}", scoring=scoring)
+        base_eval = evaluate(base, raw_scenes, args.out / f"eval_{held}_{args.pipeline}.json",
+                             f"{args.pipeline} on {held}", scoring=scoring)
+        results["folds"].append({
+            "held_out": held, "trained_on": others,
+            "params": {k: float(getattr(params.dynamic, k)) for k in searched},
+            "start": {k: float(getattr(base.dynamic, k)) for k in searched},
+            "temperature": log.get("temperature"),
+            "search_seconds": log.get("seconds"),
+            "searched": summarise(searched_eval, scoring),
+            args.pipeline: summarise(base_eval, scoring),
+        })
+        write_json(args.out / "results.json", results)
+    if not args.no_final:
+        params, _ = run_search([prepared[n] for n in names], [s for n in names for s in prepared[n]],
+                               args.out / "final", base, args, "final (all sets)", searched=searched)
+        save_params(args.out / "final" / "params.json", params)
+        results["final_params"] = {k: float(getattr(params.dynamic, k)) for k in searched}
+    results["seconds"] = time.perf_counter() - t0
+    write_json(args.out / "results.json", results)
+    print(json.dumps(results["folds"], indent=1), flush=True)
+    return results
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "main")
     parser.add_argument("--steps", type=int, default=150, help="optimizer steps per search")
     parser.add_argument("--batch", type=int, default=2, help="crops per step")
     parser.add_argument("--crop", type=int, default=64, help="crop height (widths per bucket)")
-    parser.add_argument("--folds", type=int, default=3)
+    parser.add_argument("--folds", type=folds_option, default=3,
+                        help="number of leave-scenes-out folds of trainingQ, or 'datasets': "
+                             "leave one data set of --datasets out")
+    parser.add_argument("--pipeline", choices=("paper", "accurate"), default="paper",
+                        help="paper: aggregated cost -> soft-argmin, searching the weights, "
+                             "truncations, segment weight (from --init); accurate: the accurate "
+                             "preset, through its SGM optimiser, searching the truncations and "
+                             f"the penalties ({', '.join(tuning.SGM_SEARCHED)})")
+    parser.add_argument("--datasets", type=Path, nargs="+", default=DATASETS,
+                        help="data folders of --folds datasets (any layout)")
+    parser.add_argument("--min-valid", type=float, default=0.0,
+                        help="share of valid ground-truth pixels a crop needs (redrawn until "
+                             "it has it; for sparse ground truth such as KITTI's)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--lr", type=float, default=0.02)
     parser.add_argument("--ema", type=float, default=0.95,
                         help="decay of the moving average of the iterates (the result); 0 = last")
-    parser.add_argument("--temperature", type=float, default=0.02, help="initial soft-argmin temperature")
-    parser.add_argument("--freeze", nargs="*", default=[], choices=tuning.RAW_KEYS,
+    parser.add_argument("--temperature", type=float, default=None,
+                        help="initial soft-argmin temperature (default 0.02, times the paths "
+                             "with an SGM optimiser: its volume sums them)")
+    parser.add_argument("--freeze", nargs="*", default=[], choices=tuning.ALL_RAW_KEYS,
                         help="raw variables kept at their initial value (e.g. weight_logits): "
                              "optax.set_to_zero() for them, Adam for the rest (tuning.make_optimizer)")
     parser.add_argument("--val-every", type=int, default=25)
@@ -203,13 +318,30 @@ def main(argv=None):
         parser.error(f"{args.out} holds a run; pass --resume to continue it")
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python tuning/search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    config = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}
+    config = {k: str(v) if isinstance(v, Path) else [str(p) for p in v] if k == "datasets" else v
+              for k, v in vars(args).items()}
     config["command"] = command
     if not (args.out / "config.json").exists():
         write_json(args.out / "config.json", config)
     t0 = time.perf_counter()
+    base, searched = base_params(args)
+    if args.temperature is None:
+        paths = base.static.sgm_paths if base.static.optimizer != "none" else 1
+        args.temperature = 0.02 * paths
+    unknown = sorted(set(args.freeze) - set(tuning.raw_keys(searched)))
+    if unknown:
+        parser.error(f"--freeze {' '.join(unknown)}: not searched with --pipeline {args.pipeline}")
+    if args.folds == "datasets":
+        run_dataset_cv(args, base, searched, t0)
+        from plot import plot_run  # tuning/plot.py
 
-    hand = load_params(args.init)
+        plot_run(args.out, args.out / "curves.png")
+        print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
+        return
+    if args.pipeline != "paper":
+        parser.error("--pipeline accurate needs --folds datasets")
+
+    hand = base
     root = sswjax.data.datasets.find_data_root()
     raw_scenes = sswjax.data.datasets.load_middeval3(root)
     scenes = [tuning.prepare_scene(s) for s in raw_scenes]
