@@ -81,7 +81,7 @@ def _logit(p):
     return np.log(p) - np.log1p(-p)
 
 
-def raw_keys(searched=SEARCHED) -> tuple[str, ...]:
+def raw_keys(searched) -> tuple[str, ...]:
     """The raw keys of the search space of the dynamic fields ``searched``.
 
     The three cost weights are searched together (one ``"weight_logits"`` key) or not at all;
