@@ -1,18 +1,25 @@
 """Differentiable objective for the gradient-based parameter search (optax).
 
 The search runs the *same* functions as inference: :func:`sswjax.pipeline.aggregated_cost`
-(cost, SLIC, segment-side-window aggregation), then :func:`sswjax.stages.selection.soft_argmin`
-in place of the winner-takes-all of :func:`sswjax.pipeline.select_and_refine`. The loss is a
-smooth L1 (Huber, delta 1 px) against the ground truth over valid non-occluded pixels.
+(cost, SLIC, segment-side-window aggregation), then the optimiser of ``Params.optimizer`` if
+any (``"sgm"``: :func:`sswjax.stages.sgm.semi_global` through the registry, in float32, see
+:data:`DIFFERENTIABLE_STATIC`), then :func:`sswjax.stages.selection.soft_argmin` in place of the
+winner-takes-all. The loss is a smooth L1 (Huber, delta 1 px) against the ground truth over
+valid non-occluded pixels.
 
-Reparametrisation (``raw`` is a dict of unconstrained float32 scalars):
+Search spaces: ``searched`` (a tuple of ``DynamicParams`` fields; :data:`SEARCHED` for the
+paper's pipeline, :data:`SGM_SEARCHED` for the semi-global one) picks the raw keys
+(:func:`raw_keys`); the other fields stay at their ``base`` values. Reparametrisation (``raw``
+is a dict of unconstrained float32 scalars):
 
 * ``tad_weight, gradient_weight, census_weight``: a softmax simplex of three logits, so
   ``a + b + c = 1`` (the hand-set sum). WTA is invariant to the overall scale of the cost but
   soft-argmin is not; fixing the sum and learning a separate ``temperature`` keeps the two apart.
 * ``tad_truncation``: sigmoid into ``TRUNCATION_RANGES["tad_truncation"]``;
   ``gradient_truncation`` likewise.
-* ``segment_weight``: softplus (>= 0).
+* ``segment_weight``, ``sgm_p1``, ``sgm_p2``, ``sgm_sigma``: floor + softplus
+  (:data:`SOFTPLUS_FLOORS`; sigma's floor keeps its division finite). Near its small starting
+  values softplus is about exp, so Adam's steps on the raw value are relative steps.
 * ``temperature`` of the soft-argmin: softplus (plus a floor). It is a search-only quantity, not
   a :class:`~sswjax.params.Params` field.
 

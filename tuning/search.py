@@ -12,6 +12,17 @@ scenes gives ``tuning/params/tuned.json``. Files in ``--out``: ``fold<k>/`` and 
 (``checkpoint.pkl``, ``log.json``, ``params.json``), ``eval_*.json`` (per-scene metrics),
 ``results.json`` (CV table) and ``curves.png``.
 
+``--folds datasets --pipeline accurate`` (leave one data set out): the ``accurate`` preset's
+truncations and SGM penalties (:data:`sswjax.tuning.SGM_SEARCHED`) are searched through its
+semi-global optimiser on crops of all but one of ``--datasets`` (each step draws a set
+uniformly, then a bucket and crops; gray sets repeated to 3 channels so they share compiled
+steps; ``--min-valid`` redraws crops short of ground truth, for KITTI), then ``sswjax.match``
+runs on the whole held-out set with the searched and with the preset's parameters, scored as
+``sswjax evaluate`` scores that set. Files: ``fold-<set>/`` (``log.json``, ``params.json``,
+``checkpoint.pkl``), ``eval_<set>_{searched,accurate}.json`` (per scene), ``results.json`` (the
+held-out table, searched values, times) and ``curves.png``. Scenes with ndisp > 192 are scored
+but not searched on.
+
 Crops use the scene's full disparity range. To compile once per shape, scenes are put in two
 buckets: ndisp <= 96 (padded ndisp 96, crops ``--crop`` x 128) and ndisp <= 192 (padded 192,
 crops ``--crop`` x 224); the padded disparities are masked out before the soft-argmin. Each step
