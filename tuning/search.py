@@ -20,7 +20,7 @@ steps; ``--min-valid`` redraws crops short of ground truth, for KITTI), then ``s
 runs on the whole held-out set with the searched and with the preset's parameters, scored as
 ``sswjax evaluate`` scores that set. Files: ``fold-<set>/`` (``log.json``, ``params.json``,
 ``checkpoint.pkl``), ``eval_<set>_{searched,accurate}.json`` (per scene), ``results.json`` (the
-held-out table, searched values, times) and ``curves.png``. Scenes with ndisp > 192 are scored
+held-out figures, searched values, times), ``results.md`` (them as tables) and ``curves.png``. Scenes with ndisp > 192 are scored
 but not searched on.
 
 Crops use the scene's full disparity range. To compile once per shape, scenes are put in two
@@ -231,6 +231,44 @@ def summarise(per_scene: dict, scoring) -> dict:
     return out
 
 
+TABLE_ROWS = {  # data set -> (region, metric keys) of its held-out row, as the README reports it
+    "MiddEval3": ("both", ("bad2.0", "bad1.0", "bad0.5")),
+    "KITTI2012": ("all", ("bad2.0", "bad3.0")),
+}
+
+
+def results_markdown(results: dict) -> str:
+    """The held-out table (one row per fold and metric) and the searched values, as Markdown."""
+    base = results["pipeline"]
+    lines = [f"| held out | searched on | metric | `{base}` | searched |", "|---|---|---|---|---|"]
+    for fold in results["folds"]:
+        region, keys = TABLE_ROWS.get(fold["held_out"], ("all", ("bad2.0",)))
+        for key in keys:
+            if region == "both":
+                what = f"{key[:3]} {key[3:]} nonocc / all (weighted)"
+                cells = [f"{fold[c]['nonocc'][key]:.2f} / {fold[c]['all'][key]:.2f}"
+                         for c in (base, "searched")]
+            else:
+                what = f"{key[:3]} {key[3:]} (mean over scenes)"
+                cells = [f"{fold[c][region][key]:.2f}" for c in (base, "searched")]
+            lines.append(f"| {fold['held_out']} | {' + '.join(fold['trained_on'])} | {what} | "
+                         f"{cells[0]} | {cells[1]} |")
+    fields = results["searched_fields"]
+    lines += ["", "| parameters | " + " | ".join(fields) + " | temperature |",
+              "|---|" + "---|" * (len(fields) + 1)]
+    first = results["folds"][0]
+    lines.append(f"| `{base}` (start) | " + " | ".join(f"{first['start'][k]:.4g}" for k in fields)
+                 + " | |")
+    for fold in results["folds"]:
+        lines.append(f"| searched without {fold['held_out']} | "
+                     + " | ".join(f"{fold['params'][k]:.4g}" for k in fields)
+                     + f" | {fold['temperature']:.3g} |")
+    if "final_params" in results:
+        lines.append("| searched on all sets | " + " | ".join(
+            f"{results['final_params'][k]:.4g}" for k in fields) + " | |")
+    return "\n".join(lines) + "\n"
+
+
 def base_params(args):
     """The starting parameters and the searched fields of ``--pipeline``."""
     if args.pipeline == "paper":
@@ -283,6 +321,10 @@ def run_dataset_cv(args, base, searched, t0):
         results["final_params"] = {k: float(getattr(params.dynamic, k)) for k in searched}
     results["seconds"] = time.perf_counter() - t0
     write_json(args.out / "results.json", results)
+    from sswjax.data.io import atomic_output
+
+    with atomic_output(args.out / "results.md") as tmp:
+        Path(tmp).write_text(results_markdown(results))
     print(json.dumps(results["folds"], indent=1), flush=True)
     return results
 
