@@ -23,6 +23,7 @@ import jax
 
 from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
 from sswjax.stages.aggregation import WINDOW_SELECTIONS
+from sswjax.stages.fill import SOURCES as FILL_SOURCES
 from sswjax.stages.sgm import PATH_COUNTS
 
 
@@ -72,7 +73,13 @@ class StaticParams(NamedTuple):
         4 or 8 paths of the semi-global optimisation.
     fill : str
         A key of :data:`sswjax.registry.FILLS`: how the pixels the left-right check rejects
-        are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first).
+        are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first;
+        ``"wmedian"``, a guided weighted median, :mod:`sswjax.stages.fill`).
+    fill_weight_radius : int
+        Window radius of the guided weights of ``fill="wmedian"``.
+    fill_source : str
+        What the weighted median of ``fill="wmedian"`` counts: ``"filled"``, every pixel of the
+        background-filled map, or ``"valid"``, the pixels that passed the check.
     preprocess : str
         A key of :data:`sswjax.registry.PREPROCESSORS`: what the cost sees of the images
         (``"none"``; ``"lcn"``, local contrast normalisation, :mod:`sswjax.stages.preprocess`).
@@ -102,6 +109,8 @@ class StaticParams(NamedTuple):
     optimizer: str = "none"
     sgm_paths: int = 8
     fill: str = "background"
+    fill_weight_radius: int = 9
+    fill_source: str = "filled"
     preprocess: str = "none"
     lcn_radius: int = 7
     strip_rows: int = 0
@@ -145,6 +154,12 @@ class DynamicParams(NamedTuple):
         Residual (pixels) up to which a pixel keeps full weight in the robust plane fit.
     lcn_eps : float
         Added to the local standard deviation by the local contrast normalisation.
+    fill_eps : float > 0
+        Guided-filter regularisation of the weights of ``fill="wmedian"`` (intensities in
+        [0, 1]): colour edges with a variance well above it separate the weights.
+    fill_quantile : float, in (0, 1]
+        The weighted quantile ``fill="wmedian"`` takes: 0.5 the median, less leans towards the
+        background (smaller disparities).
     """
 
     tad_weight: Any = 0.05000000074505806
@@ -163,6 +178,8 @@ class DynamicParams(NamedTuple):
     plane_min_support: Any = 0.25
     plane_inlier_scale: Any = 1.0
     lcn_eps: Any = 4 / 255
+    fill_eps: Any = 1e-3
+    fill_quantile: Any = 0.5
 
 
 @jax.tree_util.register_dataclass
@@ -221,16 +238,17 @@ _INT_FIELDS = {
     "refine_iterations": (0, 20),
     "disparity_chunk": (0, 100_000),
     "lcn_radius": (1, 50),
+    "fill_weight_radius": (1, 50),
     "strip_rows": (0, 1_000_000),
     "strip_overlap": (0, 10_000),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
                   "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "fill": FILLS,
-                  "preprocess": PREPROCESSORS}
-_UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support")
+                  "preprocess": PREPROCESSORS, "fill_source": FILL_SOURCES}
+_UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support", "fill_quantile")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",
-                    "plane_inlier_scale", "lcn_eps")
+                    "plane_inlier_scale", "lcn_eps", "fill_eps", "fill_quantile")
 
 
 def _check_value(name: str, value) -> Any:

@@ -42,6 +42,7 @@ from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_dispar
 from sswjax.stages.aggregation import segment_side_window_aggregation
 from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
+from sswjax.stages.fill import weighted_median_fill
 from sswjax.stages.refinement import fill_invalid
 from sswjax.stages.sgm import half_resolution_semi_global, semi_global
 from sswjax.stages.baselines import (
@@ -180,11 +181,13 @@ OPTIMIZERS: dict[str, Optimizer] = {
 
 class Fill(NamedTuple):
     """An entry of :data:`FILLS`: ``fn(disparity, valid, *, labels, num_segments, params)``,
-    a one-line summary and whether it uses the superpixels."""
+    a one-line summary, whether it uses the superpixels and whether it needs the left image
+    (then the pipeline passes it as ``guide=``, float32 ``(H, W, C)`` in [0, 1])."""
 
     fn: Callable[..., Any]
     summary: str
     uses_segments: bool = False
+    uses_guide: bool = False
 
 
 def _background_fill(disparity, valid, *, labels, num_segments, params):
@@ -193,6 +196,16 @@ def _background_fill(disparity, valid, *, labels, num_segments, params):
 
 def _left_band_fill(disparity, valid, *, labels, num_segments, params):
     return fill_invalid(disparity, valid, radius=params.static.fill_radius, left_band=True)
+
+
+def _weighted_median_fill(disparity, valid, *, labels, num_segments, params, guide=None):
+    if guide is None:
+        raise ValueError("fill 'wmedian' needs the left image: this pipeline does not pass "
+                         "it to the fill (guide=) yet")
+    return weighted_median_fill(disparity, valid, radius=params.static.fill_weight_radius,
+                                guide=guide, eps=params.dynamic.fill_eps,
+                                quantile=params.dynamic.fill_quantile,
+                                source=params.static.fill_source)
 
 
 def _plane_fill(disparity, valid, *, labels, num_segments, params):
@@ -210,6 +223,9 @@ FILLS: dict[str, Fill] = {
                        "a median over the filled pixels (Eq. 9 as we read it)"),
     "left-band": Fill(_left_band_fill, "the background fill, but the surface on the right where "
                       "it has no match at the pixel's column (x < d), the left border's case"),
+    "wmedian": Fill(_weighted_median_fill, "the left-band fill, then a weighted median of the "
+                    "neighbours' disparities, weighted by the guided filter on the left image "
+                    "(Rhemann et al. 2011, Ma et al. 2013)", uses_guide=True),
     "plane": Fill(_plane_fill, "a robust plane per superpixel through its valid pixels where "
                   "they support it, else the background fill", uses_segments=True),
 }

@@ -1,0 +1,178 @@
+"""Tests for sswjax.stages.fill: the guided weighted median against a brute-force NumPy one."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sswjax.stages.fill import weighted_median_fill
+from sswjax.stages.refinement import fill_background
+
+
+def guided_kernel_reference(guide, r, eps):
+    """The guided filter's weights ``W[i, j]`` (He et al., TPAMI 2013, Eq. 11), float64.
+
+    ``q_i = sum_j W[i, j] p_j``; windows run over edge-replicated coordinates, as in the
+    package: the output averages the coefficients of the windows centred at the (clamped)
+    pixels around ``i``, each fitted over the (clamped) pixels around its centre. ``guide`` is
+    (H, W, C); returns (H * W, H * W)."""
+    guide = np.asarray(guide, np.float64)
+    height, width, channels = guide.shape
+    size = (2 * r + 1) ** 2
+
+    def window(y, x):
+        return [(min(max(y + dy, 0), height - 1), min(max(x + dx, 0), width - 1))
+                for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+
+    mean, inverse = {}, {}
+    for k in np.ndindex(height, width):
+        colours = np.array([guide[j] for j in window(*k)])
+        mean[k] = colours.mean(0)
+        sigma = colours.T @ colours / size - np.outer(mean[k], mean[k])
+        inverse[k] = np.linalg.inv(sigma + eps * np.eye(channels))
+    weights = np.zeros((height * width, height * width))
+    for i in np.ndindex(height, width):
+        for k in window(*i):
+            for j in window(*k):
+                term = 1 + (guide[i] - mean[k]) @ inverse[k] @ (guide[j] - mean[k])
+                weights[i[0] * width + i[1], j[0] * width + j[1]] += term / size**2
+    return weights
+
+
+def box_kernel_reference(height, width, r):
+    """The edge-replicated box mean's weights, (H * W, H * W)."""
+    weights = np.zeros((height * width, height * width))
+    for y, x in np.ndindex(height, width):
+        for dy in range(-r, r + 1):
+            for dx in range(-r, r + 1):
+                j = min(max(y + dy, 0), height - 1) * width + min(max(x + dx, 0), width - 1)
+                weights[y * width + x, j] += 1 / (2 * r + 1) ** 2
+    return weights
+
+
+def weighted_median_reference(filled, valid, weights, *, quantile, source):
+    """Each invalid pixel: the first integer disparity whose cumulative weight reaches
+    ``quantile`` of the total (pixels too near a tie, in float32, are returned as NaN)."""
+    values = np.round(filled).ravel().astype(int)
+    counted = np.ones(values.size) if source == "filled" else valid.ravel().astype(float)
+    out = filled.astype(np.float64).ravel().copy()  # kept where valid or no weights
+    for i in np.flatnonzero(~valid.ravel()):
+        w = weights[i] * counted
+        target = quantile * w.sum()
+        if w.sum() < 0.05 + 1e-4:
+            out[i] = np.nan if w.sum() > 0.05 - 1e-4 else out[i]
+            continue
+        running = np.cumsum([w[values == b].sum() for b in range(values.max() + 1)])
+        if np.min(np.abs(running - target)) < 1e-4:
+            out[i] = np.nan
+        elif (running >= target).any() and np.argmax(running >= target) != values[i]:
+            out[i] = np.argmax(running >= target)  # else the fill, in the chosen bin, stays
+    return out.reshape(filled.shape)
+
+
+def _random_case(seed, shape=(7, 9), levels=6):
+    rng = np.random.default_rng(seed)
+    disparity = rng.integers(0, levels, shape).astype(np.float32) + rng.uniform(-0.3, 0.3, shape)
+    disparity = np.maximum(disparity, 0).astype(np.float32)
+    valid = rng.random(shape) < 0.6
+    return rng, disparity, valid
+
+
+@pytest.mark.parametrize("channels, source, quantile", [
+    (3, "filled", 0.5), (3, "valid", 0.5), (1, "filled", 0.3), (1, "valid", 0.7)])
+def test_guided_weighted_median_matches_brute_force(channels, source, quantile):
+    rng, disparity, valid = _random_case(channels * 10 + int(quantile * 10))
+    guide = rng.random(disparity.shape + (channels,)).astype(np.float32)
+    fill = jax.jit(weighted_median_fill, static_argnames=("radius", "source", "left_band"))
+    out = np.asarray(fill(jnp.asarray(disparity), jnp.asarray(valid), radius=1,
+                          guide=jnp.asarray(guide), eps=0.05, quantile=quantile, source=source))
+    filled = np.asarray(fill_background(jnp.asarray(disparity), jnp.asarray(valid), left_band=True))
+    expected = weighted_median_reference(filled, valid, guided_kernel_reference(guide, 1, 0.05),
+                                         quantile=quantile, source=source)
+    known = np.isfinite(expected)
+    assert known.sum() >= disparity.size - 3
+    np.testing.assert_allclose(out[known], expected[known], atol=1e-5)
+    np.testing.assert_array_equal(out[valid], disparity[valid])
+
+
+@pytest.mark.parametrize("source", ["filled", "valid"])
+def test_box_weighted_median_is_the_window_quantile(source):
+    _, disparity, valid = _random_case(3, shape=(8, 10))
+    # quantile 0.45: with counts of 25ths, half the valid count would often tie exactly
+    out = np.asarray(weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), radius=2,
+                                          quantile=0.45, source=source, left_band=False))
+    filled = np.asarray(fill_background(jnp.asarray(disparity), jnp.asarray(valid)))
+    expected = weighted_median_reference(filled, valid, box_kernel_reference(8, 10, 2),
+                                         quantile=0.45, source=source)
+    known = np.isfinite(expected)
+    assert known.sum() >= disparity.size - 3
+    np.testing.assert_allclose(out[known], expected[known], atol=1e-5)
+
+
+def test_colour_edge_keeps_the_pixel_on_its_own_surface():
+    # Two surfaces (disparity 2 on the left, 6 on the right) meeting at a colour edge; the
+    # rejected column right of the edge takes the right surface with the colour guide, while
+    # a plain box median (mostly the left surface in its window) takes the other one.
+    disparity = np.where(np.arange(12) < 6, 2.0, 6.0)[None].repeat(9, 0).astype(np.float32)
+    guide = np.where(np.arange(12) < 6, 0.1, 0.9)[None, :, None].repeat(9, 0).astype(np.float32)
+    valid = np.ones(disparity.shape, bool)
+    valid[:, 6:8] = False
+    disparity[~valid] = 0.0
+    args = dict(radius=3, source="valid", left_band=False)
+    guided = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid),
+                                  guide=jnp.asarray(guide), eps=1e-4, **args)
+    box = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), **args)
+    assert np.all(np.asarray(guided)[:, 6] == 6.0)
+    assert np.all(np.asarray(box)[:, 6] == 2.0)
+
+
+def test_no_counted_neighbour_keeps_the_background_fill():
+    # Far from the valid columns the window counts nothing: the running sum (0) would "reach"
+    # the target (0) at bin 0 without the guard on the total.
+    disparity = np.full((5, 20), 4.0, np.float32)
+    valid = np.zeros((5, 20), bool)
+    valid[:, :2] = True
+    out = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), radius=1,
+                               source="valid")
+    assert np.all(np.asarray(out) == 4.0)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(radius=0), "radius must be an integer >= 1"),
+    (dict(radius=1, source="all"), "source must be one of"),
+    (dict(radius=1, quantile=0.0), r"quantile must be in \(0, 1\]"),
+    (dict(radius=1, eps=0.0), "eps must be > 0"),
+    (dict(radius=1, guide=jnp.zeros((3, 4, 2))), "guide"),
+])
+def test_bad_arguments(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        weighted_median_fill(jnp.zeros((4, 5)), jnp.ones((4, 5), bool), **kwargs)
+
+
+def test_registry_entry_and_params():
+    import sswjax
+    from sswjax import registry
+    from sswjax.params import params_from_dict
+
+    entry = registry.FILLS["wmedian"]
+    assert entry.uses_guide and not entry.uses_segments
+    params = params_from_dict({"fill": "wmedian", "fill_weight_radius": 2, "fill_source": "valid",
+                               "fill_eps": 0.01, "fill_quantile": 0.5})
+    _, disparity, valid = _random_case(7)
+    guide = np.random.default_rng(8).random(disparity.shape + (3,)).astype(np.float32)
+    run = jax.jit(lambda d, v, g, p: entry.fn(d, v, labels=None, num_segments=0, params=p,
+                                              guide=g))
+    out = run(jnp.asarray(disparity), jnp.asarray(valid), jnp.asarray(guide), params)
+    direct = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), radius=2,
+                                  guide=jnp.asarray(guide), eps=0.01, source="valid")
+    np.testing.assert_array_equal(np.asarray(out), np.asarray(direct))
+    with pytest.raises(ValueError, match="needs the left image"):
+        entry.fn(jnp.asarray(disparity), jnp.asarray(valid), labels=None, num_segments=0,
+                 params=params)
+    for bad, message in [({"fill_source": "all"}, "fill_source must be one of"),
+                         ({"fill_weight_radius": 0}, "fill_weight_radius must be in"),
+                         ({"fill_quantile": 1.5}, "fill_quantile must be in"),
+                         ({"fill_eps": 0}, "fill_eps must be a finite number > 0")]:
+        with pytest.raises(ValueError, match=message):
+            params_from_dict(bad)
+    assert sswjax.Params().static.fill == "background"  # the paper's fill stays the default
