@@ -13,6 +13,7 @@ Data flows through them in this order (``sswjax.pipeline`` composes them into on
 ``sgm``          semi-global optimisation of the aggregated volume (Hirschmuller 2008)
 ``selection``    winner-takes-all, the running fold of both views, sub-pixel, soft-argmin (Eq. 8)
 ``refinement``   left-right check and filling (Eq. 9)
+``fill``         guided weighted-median fill of the rejected pixels (Eq. 9, weighted)
 ``confidence``   confidence measures and validity bits from the fold's cues and the refinement
 ``planes``       robust plane per superpixel, filling the pixels it supports
 ``pyramid``      halving and doubling of images and volumes (half-resolution SGM)
