@@ -24,7 +24,7 @@ import jax
 from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
 from sswjax.stages.aggregation import WINDOW_SELECTIONS
 from sswjax.stages.fill import SOURCES as FILL_SOURCES
-from sswjax.stages.sgm import PATH_COUNTS
+from sswjax.stages.sgm import PATH_COUNTS, SGM_DTYPES
 
 
 class StaticParams(NamedTuple):
@@ -71,6 +71,10 @@ class StaticParams(NamedTuple):
         resolution added back to the aggregated cost).
     sgm_paths : int
         4 or 8 paths of the semi-global optimisation.
+    sgm_dtype : str
+        ``"int16"`` (default): the paths run on the volume quantised to int16, as OpenCV's SGBM
+        does, 1.5-3x faster on XLA CPU; ``"float32"``: exact and differentiable (the parameter
+        search uses it). :data:`sswjax.stages.sgm.SGM_DTYPES`.
     fill : str
         A key of :data:`sswjax.registry.FILLS`: how the pixels the left-right check rejects
         are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first;
@@ -108,6 +112,7 @@ class StaticParams(NamedTuple):
     disparity_chunk: int = 4
     optimizer: str = "none"
     sgm_paths: int = 8
+    sgm_dtype: str = "int16"
     fill: str = "background"
     fill_weight_radius: int = 9
     fill_source: str = "filled"
@@ -244,7 +249,8 @@ _INT_FIELDS = {
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
-                  "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "fill": FILLS,
+                  "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "sgm_dtype": SGM_DTYPES,
+                  "fill": FILLS,
                   "preprocess": PREPROCESSORS, "fill_source": FILL_SOURCES}
 _UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support", "fill_quantile")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",

@@ -152,18 +152,34 @@ class Optimizer(NamedTuple):
     subpixel_on_input: bool = False
 
 
+def _cost_bound(params):
+    """The largest aggregated cost of a matching pixel for ``sgm_dtype="int16"`` (else None).
+
+    Each term of Eq. 5 is normalised to [0, 1], the border cost is the weights' sum, and the
+    aggregators average: the weights' sum bounds the cost, times ``1 + lambda`` with the segment
+    term of Eq. 7 (a filter that is not an average, such as the guided one, may overshoot it
+    slightly: the quantisation clips there).
+    """
+    static, dynamic = params.static, params.dynamic
+    if static.sgm_dtype == "float32":
+        return None
+    bound = abs(dynamic.tad_weight) + abs(dynamic.gradient_weight) + abs(dynamic.census_weight)
+    return bound * (1.0 + abs(dynamic.segment_weight)) if static.n_segments else bound
+
+
 def _semi_global(cost, guide, *, labels, params):
     static, dynamic = params.static, params.dynamic
     return semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2, sigma=dynamic.sgm_sigma,
                        paths=static.sgm_paths, labels=labels,
-                       segment_factor=dynamic.sgm_segment_factor)
+                       segment_factor=dynamic.sgm_segment_factor, cost_bound=_cost_bound(params))
 
 
 def _half_resolution_semi_global(cost, guide, *, labels, params):
     static, dynamic = params.static, params.dynamic
     return half_resolution_semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
                                        sigma=dynamic.sgm_sigma, paths=static.sgm_paths,
-                                       detail_weight=dynamic.sgm_detail_weight)
+                                       detail_weight=dynamic.sgm_detail_weight,
+                                       cost_bound=_cost_bound(params))
 
 
 OPTIMIZERS: dict[str, Optimizer] = {

@@ -70,6 +70,37 @@ def test_semi_global_matches_reference(paths, with_labels):
     np.testing.assert_allclose(ours, reference, atol=1e-5, rtol=1e-5)
 
 
+@pytest.mark.parametrize("paths", [4, 8])
+def test_int16_paths_match_the_reference_within_the_quantisation(paths):
+    # The int16 recursion is the float one on costs rounded to 1/scale: the sums differ by at
+    # most a few steps per path (the rounding of the cost and of the penalties, carried along).
+    rng = np.random.default_rng(10 + paths)
+    cost = rng.random((6, 7, 9)).astype(np.float32)
+    guide = rng.random((7, 9, 3)).astype(np.float32)
+    ours = jax.jit(lambda c, g: semi_global(c, g, p1=0.1, p2=0.6, sigma=0.2, paths=paths,
+                                             cost_bound=1.0))(jnp.asarray(cost), jnp.asarray(guide))
+    reference = semi_global_reference(cost, guide, 0.1, 0.6, 0.2, paths)
+    scale = (2 ** 15 - 1 - 2 * paths) / (paths * (2.0 + 0.6))
+    assert ours.dtype == jnp.float32
+    np.testing.assert_allclose(ours, reference, atol=paths * 4 / scale, rtol=0)
+    assert np.abs(np.asarray(ours) - reference).max() > 0          # it did quantise
+
+
+def test_int16_paths_cannot_overflow_at_the_bound():
+    # Costs at twice the bound everywhere but a stripe of zeros, the largest penalties: the
+    # sums reach their maximum and must neither wrap around nor go negative.
+    cost = np.full((5, 6, 8), 50.0, np.float32)
+    cost[2, :, 3:5] = 0.0
+    guide = np.zeros((6, 8, 1), np.float32)
+    for paths in (4, 8):
+        ours = np.asarray(semi_global(jnp.asarray(cost), jnp.asarray(guide), p1=0.9, p2=0.9,
+                                      paths=paths, cost_bound=1.0))
+        reference = semi_global_reference(np.minimum(cost, 2.0), guide, 0.9, 0.9, 0.05, paths)
+        assert ours.min() >= 0
+        np.testing.assert_allclose(ours, reference, atol=paths * 4 * 2.9 / 32000, rtol=0)
+        np.testing.assert_array_equal(ours.argmin(axis=0), reference.argmin(axis=0))
+
+
 def test_path_penalties_match_reference():
     rng = np.random.default_rng(3)
     guide = rng.random((5, 6, 1)).astype(np.float32)
