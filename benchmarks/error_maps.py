@@ -7,7 +7,9 @@ installed), its disparity map above its bad 2.0 error map (red = wrong, grey = r
 no ground truth; KITTI's sparse ground truth drawn grown by ``--dilate`` pixels so the dots stay
 visible), each titled with the scene's bad 2.0 over all pixels with ground truth. Writes the
 PNG (``-o``) and beside it a Markdown table of the same figures (``.md``, bad 2.0 all and,
-where the scene has occluded pixels, nonocc).
+where the scene has occluded pixels, nonocc), and of bad 2.0 by region (:func:`regions`):
+near depth edges, in the left band, and elsewhere in the lower third and the upper two thirds
+of the image (the floor or road, and the rest).
 
 ``--candidates`` scores every scene of the named sets (or of all three) instead and prints a
 table sorted by how much ``paper`` loses to the best peer, with the left image's mean and
@@ -25,6 +27,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 import sswjax
 from sswjax.data.files import atomic_output
@@ -106,6 +109,50 @@ def candidates(runners: dict, loaded) -> str:
     return "\n".join(lines)
 
 
+EDGE_RADIUS = 3  # pixels within this distance of a ground-truth depth jump are "edges"
+
+
+def regions(scene) -> dict[str, np.ndarray]:
+    """Boolean (H, W) masks splitting the pixels with ground truth: within :data:`EDGE_RADIUS` of a
+    jump of more than 1 px between neighbours in the ground truth ("edges"), else the first
+    ``ndisp`` columns ("left band"), else the lower third and the upper two thirds ("lower",
+    "upper": on the indoor and street scenes, the floor or road and the rest)."""
+    known = np.isfinite(scene.ground_truth)
+    gt = np.where(known, scene.ground_truth, np.nan)  # no jump to or from an unknown pixel
+    jump = np.zeros_like(known)
+    with np.errstate(invalid="ignore"):
+        jump[:, 1:] |= np.abs(np.diff(gt, axis=1)) > 1
+        jump[1:, :] |= np.abs(np.diff(gt, axis=0)) > 1
+    size = 2 * EDGE_RADIUS + 1
+    edges = binary_dilation(jump, structure=np.ones((size, size), bool)) & known
+    band = np.zeros_like(known)
+    band[:, :scene.ndisp] = True
+    band &= known & ~edges
+    lower = np.zeros_like(known)
+    lower[2 * gt.shape[0] // 3:] = True
+    rest = known & ~edges & ~band
+    return {"edges": edges, "left band": band, "lower": rest & lower, "upper": rest & ~lower}
+
+
+def region_table(loaded, results) -> str:
+    """Markdown: per scene and method, bad 2.0 (%) in each of :func:`regions`, with their shares."""
+    methods = list(results[0])
+    lines = []
+    for (set_name, scene), per_method in zip(loaded, results):
+        masks = regions(scene)
+        known = np.isfinite(scene.ground_truth)
+        if not lines:
+            lines = ["| scene | method | " + " | ".join(masks) + " |", "|---" * (len(masks) + 2) + "|"]
+        shares = [f"{100 * m.sum() / known.sum():.1f} % of pixels" for m in masks.values()]
+        lines.append(f"| {set_name}/{scene.name} | (share) | " + " | ".join(shares) + " |")
+        for name in methods:
+            error = np.abs(per_method[name].disparity - np.where(known, scene.ground_truth, 0))
+            bad = known & ~(error <= THRESHOLD)
+            cells = [f"{100 * (bad & m).sum() / max(m.sum(), 1):.1f}" for m in masks.values()]
+            lines.append(f"| | {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def markdown(loaded, results, command: str) -> str:
     """Per scene and method, bad 2.0 over all pixels with ground truth (and nonocc where known)."""
     methods = list(results[0])
@@ -120,6 +167,9 @@ def markdown(loaded, results, command: str) -> str:
             nonocc = f" ({metrics['nonocc'][KEY]:.2f})" if occluded else ""
             cells.append(f"{metrics['all'][KEY]:.2f}{nonocc}")
         lines.append(f"| {set_name}/{scene.name} | " + " | ".join(cells) + " |")
+    lines += ["", f"Bad 2.0 (%) by region: within {EDGE_RADIUS} px of a ground-truth depth jump "
+              "(> 1 px), else the left band (x < ndisp), else the lower third and the upper two "
+              "thirds of the image.", "", region_table(loaded, results)]
     return "\n".join(lines + ["", f"`{command}`"])
 
 
