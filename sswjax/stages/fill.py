@@ -11,7 +11,8 @@ The weighted median is computed as in Ma, He, Wei, Sun & Wu, "Constant Time Weig
 Filtering for Stereo Matching and Beyond" (ICCV 2013): disparities are cut into integer bins,
 each bin's indicator map is smoothed by the guided filter (He, Sun & Tang, TPAMI 2013: box
 sums, O(1) per pixel and bin), and each pixel takes the first bin where the running sum of the
-smoothed indicators over increasing disparities reaches ``quantile`` times their total.
+smoothed indicators over increasing disparities reaches ``quantile`` times their total,
+refined to sub-pixel by where in that bin the total is reached.
 
 Array conventions (whole module): disparity maps float32 ``(H, W)`` in pixels, validity bool
 ``(H, W)``, guide images float32 ``(H, W, C)`` (C in {1, 3}) or ``(H, W)`` in [0, 1].
@@ -79,16 +80,19 @@ def weighted_median_fill(
     Returns
     -------
     float32 (H, W), dense; equal to ``disparity`` where ``valid``. An invalid pixel gets the
-    chosen integer bin, or its background fill where that rounds to the chosen bin (keeping
-    its sub-pixel part) or where the weights are unusable.
+    chosen bin ``k`` plus ``s - 1/2``, ``s`` in [0, 1] the share of the bin's weight needed to
+    reach the quantile; or its background fill where that rounds to ``k`` (keeping its own
+    sub-pixel part) or where the weights are unusable.
 
     Examples
     --------
     >>> import jax.numpy as jnp
     >>> d = jnp.array([[1., 1., 1., 0., 5., 5.]] * 3)
     >>> v = jnp.array([[True, True, True, False, True, True]] * 3)
-    >>> weighted_median_fill(d, v, radius=1, source="valid")[1].tolist()
+    >>> weighted_median_fill(d, v, radius=1)[1].tolist()
     [1.0, 1.0, 1.0, 1.0, 5.0, 5.0]
+    >>> weighted_median_fill(d, v, radius=1, source="valid")[1].tolist()  # a tie: 1 | 5
+    [1.0, 1.0, 1.0, 1.5, 5.0, 5.0]
     """
     check_rank("disparity", disparity, 2)
     check_floating("disparity", disparity)
@@ -114,17 +118,24 @@ def weighted_median_fill(
     target = quantile * total
 
     def add_bin(k, state):
-        running, chosen = state
+        running, chosen, offset = state
+        previous = running
         running = running + smooth(jnp.where(bins == k, counted, 0.0))
-        chosen = jnp.where((chosen < 0) & (running >= target), k, chosen)
-        return running, chosen
+        crossing = (chosen < 0) & (running >= target)
+        # Where in the bin [k - 1/2, k + 1/2) the target falls, the bin's weight spread evenly
+        # over it (the grouped-data median): a sub-pixel value at no extra filtering.
+        share = (target - previous) / jnp.maximum(running - previous, 1e-6)
+        offset = jnp.where(crossing, jnp.clip(share, 0.0, 1.0) - 0.5, offset)
+        chosen = jnp.where(crossing, k, chosen)
+        return running, chosen, offset
 
-    start = (jnp.zeros(filled.shape, jnp.float32), jnp.full(filled.shape, -1, jnp.int32))
-    _, chosen = lax.fori_loop(0, jnp.max(bins) + 1, add_bin, start)
+    start = (jnp.zeros(filled.shape, jnp.float32), jnp.full(filled.shape, -1, jnp.int32),
+             jnp.zeros(filled.shape, jnp.float32))
+    _, chosen, offset = lax.fori_loop(0, jnp.max(bins) + 1, add_bin, start)
     # Guided-filter weights can be negative, so the running sum may never reach the target
     # (chosen < 0), and the total is near 0 where no counted pixel is near: keep the fill there.
     usable = (chosen >= 0) & (total >= 0.05)
     # Where the pixel's own background-filled disparity lies in the chosen bin, it is kept: it
     # has the sub-pixel precision that the bin lacks.
-    median = jnp.where(chosen == bins, filled, chosen.astype(jnp.float32))
+    median = jnp.where(chosen == bins, filled, chosen.astype(jnp.float32) + offset)
     return jnp.where(valid | ~usable, filled, median)

@@ -51,8 +51,9 @@ def box_kernel_reference(height, width, r):
 
 
 def weighted_median_reference(filled, valid, weights, *, quantile, source):
-    """Each invalid pixel: the first integer disparity whose cumulative weight reaches
-    ``quantile`` of the total (pixels too near a tie, in float32, are returned as NaN)."""
+    """Each invalid pixel: the first integer disparity ``k`` whose cumulative weight reaches
+    ``quantile`` of the total, plus where in ``[k - 1/2, k + 1/2)`` it does (pixels too near a
+    tie, in float32, are returned as NaN)."""
     values = np.round(filled).ravel().astype(int)
     counted = np.ones(values.size) if source == "filled" else valid.ravel().astype(float)
     out = filled.astype(np.float64).ravel().copy()  # kept where valid or no weights
@@ -66,7 +67,10 @@ def weighted_median_reference(filled, valid, weights, *, quantile, source):
         if np.min(np.abs(running - target)) < 1e-4:
             out[i] = np.nan
         elif (running >= target).any() and np.argmax(running >= target) != values[i]:
-            out[i] = np.argmax(running >= target)  # else the fill, in the chosen bin, stays
+            k = np.argmax(running >= target)  # else the fill, in the chosen bin, stays
+            below = running[k - 1] if k else 0.0
+            share = (target - below) / max(running[k] - below, 1e-6)
+            out[i] = k + np.clip(share, 0, 1) - 0.5
     return out.reshape(filled.shape)
 
 
@@ -122,8 +126,8 @@ def test_colour_edge_keeps_the_pixel_on_its_own_surface():
     guided = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid),
                                   guide=jnp.asarray(guide), eps=1e-4, **args)
     box = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), **args)
-    assert np.all(np.asarray(guided)[:, 6] == 6.0)
-    assert np.all(np.asarray(box)[:, 6] == 2.0)
+    np.testing.assert_allclose(np.asarray(guided)[:, 6], 6.0, atol=0.01)
+    np.testing.assert_allclose(np.asarray(box)[:, 6], 2.0, atol=0.01)
 
 
 def test_no_counted_neighbour_keeps_the_background_fill():
@@ -165,7 +169,7 @@ def test_registry_entry_and_params():
     out = run(jnp.asarray(disparity), jnp.asarray(valid), jnp.asarray(guide), params)
     direct = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), radius=2,
                                   guide=jnp.asarray(guide), eps=0.01, source="valid")
-    np.testing.assert_array_equal(np.asarray(out), np.asarray(direct))
+    np.testing.assert_allclose(np.asarray(out), np.asarray(direct), atol=1e-5)  # jit vs eager
     with pytest.raises(ValueError, match="needs the left image"):
         entry.fn(jnp.asarray(disparity), jnp.asarray(valid), labels=None, num_segments=0,
                  params=params)
