@@ -89,10 +89,12 @@ def weighted_median_fill(
     >>> import jax.numpy as jnp
     >>> d = jnp.array([[1., 1., 1., 0., 5., 5.]] * 3)
     >>> v = jnp.array([[True, True, True, False, True, True]] * 3)
-    >>> weighted_median_fill(d, v, radius=1)[1].tolist()
+    >>> weighted_median_fill(d, v, radius=1, left_band=False)[1].tolist()
     [1.0, 1.0, 1.0, 1.0, 5.0, 5.0]
-    >>> weighted_median_fill(d, v, radius=1, source="valid")[1].tolist()  # a tie: 1 | 5
+    >>> weighted_median_fill(d, v, radius=1, left_band=False, source="valid")[1].tolist()
     [1.0, 1.0, 1.0, 1.5, 5.0, 5.0]
+
+    (The second is a tie, three 1s against three 5s: the value is the end of the bin of 1.)
     """
     check_rank("disparity", disparity, 2)
     check_floating("disparity", disparity)
