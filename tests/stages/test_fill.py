@@ -180,3 +180,16 @@ def test_registry_entry_and_params():
         with pytest.raises(ValueError, match=message):
             params_from_dict(bad)
     assert sswjax.Params().static.fill == "background"  # the paper's fill stays the default
+
+
+@pytest.mark.parametrize("content, message", [
+    ('{"fill": "wmedian"}', "fill 'wmedian' needs the left image: this pipeline does not pass it"),
+    ('{"fill_source": "all"}', "parameter fill_source must be one of ('filled', 'valid'), got 'all'"),
+])
+def test_cli_bad_fill_parameters(small_pair, tmp_path, run_cli, content, message):
+    params = tmp_path / "params.json"
+    params.write_text(content)
+    code, _, err = run_cli(["match", small_pair.folder / "left.png", small_pair.folder / "right.png",
+                            "--ndisp", 8, "-o", tmp_path / "d.pfm", "--params", params])
+    assert code == 2 and err.startswith("sswjax: error: ") and err.count("\n") == 1, err
+    assert message in err and not (tmp_path / "d.pfm").exists()
