@@ -298,3 +298,28 @@ def test_random_crops_sparse_ground_truth():
     _, _, _, once, _ = tuning.random_crops([scene], np.random.default_rng(1), batch=20, height=12,
                                            width=20)
     assert once.mean(axis=(1, 2)).min() < 0.2  # without min_valid some crops miss it
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--pipeline", "accurate"], "needs --folds datasets"),
+    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "segment_weight"],
+     "not searched with --pipeline accurate"),
+    (["--folds", "one"], "expected a number or 'datasets'"),
+    (["--folds", "datasets", "--min-valid", "1.5"], "--min-valid must be in"),
+])
+def test_search_script_refuses_before_writing(tmp_path, capsys, argv, message):
+    """tuning/search.py: option errors exit 2 with one message and leave --out unwritten."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tuning"))
+    try:
+        import search
+    finally:
+        sys.path.pop(0)
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as exit_info:
+        search.main(["--out", str(out), *argv])
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

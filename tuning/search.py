@@ -367,8 +367,20 @@ def main(argv=None):
     parser.add_argument("--resume", action="store_true",
                         help="continue an existing --out (otherwise it must not hold a run)")
     args = parser.parse_args(argv)
+    # every check before anything is written
     if (args.out / "config.json").exists() and not args.resume:
         parser.error(f"{args.out} holds a run; pass --resume to continue it")
+    if args.pipeline != "paper" and args.folds != "datasets":
+        parser.error(f"--pipeline {args.pipeline} needs --folds datasets")
+    if not 0 <= args.min_valid < 1:
+        parser.error(f"--min-valid must be in [0, 1), got {args.min_valid}")
+    base, searched = base_params(args)
+    unknown = sorted(set(args.freeze) - set(tuning.raw_keys(searched)))
+    if unknown:
+        parser.error(f"--freeze {' '.join(unknown)}: not searched with --pipeline {args.pipeline}")
+    if args.temperature is None:
+        paths = base.static.sgm_paths if base.static.optimizer != "none" else 1
+        args.temperature = 0.02 * paths
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python tuning/search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     config = {k: str(v) if isinstance(v, Path) else [str(p) for p in v] if k == "datasets" else v
@@ -377,13 +389,6 @@ def main(argv=None):
     if not (args.out / "config.json").exists():
         write_json(args.out / "config.json", config)
     t0 = time.perf_counter()
-    base, searched = base_params(args)
-    if args.temperature is None:
-        paths = base.static.sgm_paths if base.static.optimizer != "none" else 1
-        args.temperature = 0.02 * paths
-    unknown = sorted(set(args.freeze) - set(tuning.raw_keys(searched)))
-    if unknown:
-        parser.error(f"--freeze {' '.join(unknown)}: not searched with --pipeline {args.pipeline}")
     if args.folds == "datasets":
         run_dataset_cv(args, base, searched, t0)
         from plot import plot_run  # tuning/plot.py
@@ -391,9 +396,6 @@ def main(argv=None):
         plot_run(args.out, args.out / "curves.png")
         print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
         return
-    if args.pipeline != "paper":
-        parser.error("--pipeline accurate needs --folds datasets")
-
     hand = base
     root = sswjax.data.datasets.find_data_root()
     raw_scenes = sswjax.data.datasets.load_middeval3(root)
