@@ -283,9 +283,10 @@ def _match_maps(left, right, ndisp, *, min_disp: int, params: Params | None,
     left, right = range_frame(left, right, min_disp=min_disp)
     height, width = left.shape[:2]
     if check_memory:
-        from sswjax.memory import check_memory as guard
+        from sswjax.memory import fit_in_memory
 
-        guard(height, width, int(ndisp), params=params, channels=left.shape[-1], buckets=buckets)
+        params = fit_in_memory(height, width, int(ndisp), params=params, channels=left.shape[-1],
+                               buckets=buckets)
     if buckets is None:
         run = functools.partial(graph, params=params, ndisp=int(ndisp))
     else:

@@ -152,7 +152,7 @@ def cmd_match(args) -> int:
                       args.confidence, args.validity)
     calib = _calibration(args)
     params = _params(args)
-    guard_pair(args, params)
+    params = guard_pair(args, params)
     left, right = read_image(args.left), read_image(args.right)
     start = time.perf_counter()
     if wants_confidence(args):

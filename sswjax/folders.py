@@ -66,8 +66,9 @@ def image_size(path: str | Path) -> tuple[int, int, int]:
 
 
 def guard_memory(sizes, ndisp: int, *, params, limit_gb: float | None = None, min_disp: int = 0,
-                 buckets=None) -> int:
-    """Raise :class:`sswjax.memory.MemoryEstimateError` unless the largest of ``sizes`` fits.
+                 buckets=None):
+    """The parameters with which the largest of ``sizes`` fits (strips chosen if it must,
+    :func:`sswjax.memory.fit_in_memory`); :class:`sswjax.memory.MemoryEstimateError` if none.
 
     Parameters
     ----------
@@ -81,17 +82,23 @@ def guard_memory(sizes, ndisp: int, *, params, limit_gb: float | None = None, mi
 
     Returns
     -------
-    int, the largest estimate in bytes.
+    Params, ``params`` itself unless strips had to be chosen (a note on stderr says so).
     """
-    from sswjax.memory import check_memory, estimate_peak_bytes
+    from sswjax.memory import estimate_peak_bytes, fit_in_memory
 
     pad = max(-int(min_disp), 0)
     shapes = {(h, w + pad, c) for h, w, c in sizes}
     largest = max(shapes, key=lambda s: estimate_peak_bytes(s[0], s[1], ndisp, params=params,
                                                             channels=s[2], buckets=buckets))
     limit = None if limit_gb is None else limit_gb * 1e9
-    return check_memory(largest[0], largest[1], ndisp, params=params, channels=largest[2],
-                        buckets=buckets, limit=limit)
+    fitted = fit_in_memory(largest[0], largest[1], ndisp, params=params, channels=largest[2],
+                           buckets=buckets, limit=limit)
+    if fitted.static.strip_rows != params.static.strip_rows:
+        estimate = estimate_peak_bytes(largest[0], largest[1], ndisp, params=fitted,
+                                       channels=largest[2], buckets=buckets)
+        print(f"sswjax: note: matching in strips of {fitted.static.strip_rows} rows to fit in "
+              f"memory (about {estimate / 1e9:.2f} GB)", file=sys.stderr)
+    return fitted
 
 
 def _images(folder: Path) -> dict[str, Path]:
@@ -177,8 +184,8 @@ def match_folders(args) -> int:
         raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
                          f"{narrowest.name}, got {args.ndisp}")
     buckets = ShapeBuckets() if args.bucket else None
-    guard_memory([p.size for p in pairs], args.ndisp, params=params, limit_gb=args.max_memory,
-                 min_disp=min_disp, buckets=buckets)
+    params = guard_memory([p.size for p in pairs], args.ndisp, params=params,
+                          limit_gb=args.max_memory, min_disp=min_disp, buckets=buckets)
 
     def shape(pair):
         height, width = pair.size[:2]
@@ -214,12 +221,14 @@ def match_folders(args) -> int:
     return 0
 
 
-def guard_pair(args, params) -> None:
+def guard_pair(args, params):
     """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
-    is for folders; the memory estimate of the pair (sizes from the headers) must fit."""
+    is for folders; the pair (sizes from the headers) must fit in memory, in strips if it must.
+    Returns the parameters to match with."""
     if args.resume:
         raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
     left, right = image_size(args.left), image_size(args.right)
     if left[:2] == right[:2] and args.ndisp >= 1:  # else sswjax.match reports the problem
-        guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
-                     limit_gb=args.max_memory, min_disp=getattr(args, "min_disp", 0) or 0)
+        return guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
+                            limit_gb=args.max_memory, min_disp=getattr(args, "min_disp", 0) or 0)
+    return params

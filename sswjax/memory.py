@@ -24,8 +24,8 @@ its table is in the README ("Memory guard"). The terms:
 ``volume``
     ``h * W * D`` when a whole volume is aggregated at once (``disparity_chunk = 0``).
 ``sgm``
-    ``h * W * D`` with the semi-global optimiser: the aggregated volume, the scans' inputs,
-    transposed copies and outputs (about eight volumes of float32).
+    ``h * W * D`` with the semi-global optimiser: the aggregated volume (float32), the paths'
+    two transposed int16 inputs and their in-place int16 sum (about 10 bytes per element).
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
 
@@ -39,8 +39,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["MemoryEstimateError", "available_bytes", "estimate_peak_bytes", "memory_terms",
-           "check_memory", "format_gb"]
+__all__ = ["MemoryEstimateError", "STRIP_HEIGHTS", "available_bytes", "check_memory",
+           "estimate_peak_bytes", "fit_in_memory", "format_gb", "memory_terms"]
+
+STRIP_HEIGHTS = (512, 384, 256, 192, 128, 96, 64, 48, 32, 16)
+"""Strip heights (rows) that :func:`fit_in_memory` tries, tallest first."""
 
 
 class MemoryEstimateError(MemoryError):
@@ -57,23 +60,23 @@ class MemoryEstimateError(MemoryError):
 
 
 COEFFICIENTS: dict[str, float] = {
-    "base": 4.369e8,
-    "image": 22.8,
+    "base": 4.42e8,
+    "image": 19.8,
     "window": 0.0,
-    "slic": 239.7,
-    "blocks": 23.66,
-    "volume": 21.73,
-    "sgm": 31.24,
-    "sgm8": 0.0,
+    "slic": 246.4,
+    "blocks": 24.43,
+    "volume": 24.67,
+    "sgm": 10.09,
+    "sgm8": 0.4838,
 }
 """Bytes per unit of each term, fitted by ``benchmarks/memory_model.py``."""
 
-COMPILE_FLOOR: dict[str, float] = {"none": 0.463e9, "sgm": 0.959e9}
+COMPILE_FLOOR: dict[str, float] = {"none": 0.471e9, "sgm": 0.968e9}
 """Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling the graph, without and
 with the semi-global optimiser (whose scans take about half a GB more to compile)."""
 
 MARGIN = 1.15
-"""Factor over the fitted model: the measured peaks were 0.93 to 1.06 times the model."""
+"""Factor over the fitted model: the measured peaks were 0.78 to 1.05 times the model."""
 
 SLACK = 150_000_000
 """Bytes added after the margin: room for run-to-run variation (the same run peaked at 0.45
@@ -272,13 +275,8 @@ def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: 
     params = Params() if params is None else params
     estimate = estimate_peak_bytes(height, width, ndisp, params=params, channels=channels,
                                    buckets=buckets)
-    free = available_bytes()
-    bounds = [(b, what) for b, what in ((limit, "the limit"), (free, "the available memory"))
-              if b is not None]
-    if not bounds:
-        return estimate
-    bound, what = min(bounds)
-    if estimate <= bound:
+    bound, what = _bound(limit)
+    if bound is None or estimate <= bound:
         return estimate
     raise MemoryEstimateError(
         f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
@@ -286,17 +284,78 @@ def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: 
         estimate=estimate, limit=int(bound))
 
 
-def _advice(height, width, ndisp, params, channels, buckets, bound) -> str:
-    """What to change so the call fits: the largest strip that fits, else a smaller ndisp."""
+def fit_in_memory(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
+                  buckets=None, limit: float | None = None):
+    """The parameters with which one call fits in memory: strips chosen when they must be.
+
+    With ``params.static.strip_rows == 0`` (the whole image) and an estimate above the bound,
+    the pair is matched in the tallest strips of :data:`STRIP_HEIGHTS` that fit (the overlap
+    capped at the strip's height); with explicit strips, or when the whole image fits, the
+    parameters come back unchanged. Nothing fits: :class:`MemoryEstimateError`, as
+    :func:`check_memory` raises it.
+
+    Parameters
+    ----------
+    height, width, ndisp, params, channels, buckets, limit
+        As :func:`check_memory`.
+
+    Returns
+    -------
+    Params
+
+    Examples
+    --------
+    >>> import sswjax
+    >>> fitted = fit_in_memory(1988, 2964, 280, params=sswjax.preset("accurate"), limit=6e9)
+    >>> 0 < fitted.static.strip_rows < 1988
+    True
+    """
+    from sswjax.params import Params
+
+    params = Params() if params is None else params
+    bound, _ = _bound(limit)
+    if bound is None or params.static.strip_rows or estimate_peak_bytes(
+            height, width, ndisp, params=params, channels=channels, buckets=buckets) <= bound:
+        check_memory(height, width, ndisp, params=params, channels=channels, buckets=buckets,
+                     limit=limit)
+        return params
+    strips = _tallest_strips(height, width, ndisp, params, channels, buckets, bound)
+    if strips is None:
+        check_memory(height, width, ndisp, params=params, channels=channels, buckets=buckets,
+                     limit=limit)  # raises, with the advice
+    return strips
+
+
+def _bound(limit):
+    """The tighter of ``limit`` and the available memory, and which it is (None if neither)."""
+    free = available_bytes()
+    bounds = [(b, what) for b, what in ((limit, "the limit"), (free, "the available memory"))
+              if b is not None]
+    return min(bounds) if bounds else (None, None)
+
+
+def _tallest_strips(height, width, ndisp, params, channels, buckets, bound):
+    """``params`` with the tallest strips of :data:`STRIP_HEIGHTS` (lower than the current
+    ones, if any, and than the image) whose estimate fits under ``bound``; None if none."""
     static = params.static
-    for rows in (512, 256, 128, 64, 32, 16):
-        if static.strip_rows and rows >= static.strip_rows:
+    for rows in STRIP_HEIGHTS:
+        if rows >= height or (static.strip_rows and rows >= static.strip_rows):
             continue
         trial = params.replace(strip_rows=rows, strip_overlap=min(static.strip_overlap, rows))
         if estimate_peak_bytes(height, width, ndisp, params=trial, channels=channels,
                                buckets=buckets) <= bound:
-            return (f"match in strips with --params holding \"strip_rows\": {rows} "
-                    f"(Params.strip_rows={rows}, about "
-                    f"{format_gb(estimate_peak_bytes(height, width, ndisp, params=trial, channels=channels, buckets=buckets))}), "
-                    "or a smaller ndisp or image")
-    return "a smaller ndisp or image (even strips of 16 rows do not fit), or a larger --max-memory"
+            return trial
+    return None
+
+
+def _advice(height, width, ndisp, params, channels, buckets, bound) -> str:
+    """What to change so the call fits: the tallest strips that fit, else a smaller ndisp."""
+    trial = _tallest_strips(height, width, ndisp, params, channels, buckets, bound)
+    if trial is None:
+        return ("a smaller ndisp or image (even strips of 16 rows do not fit), or a larger "
+                "--max-memory")
+    rows = trial.static.strip_rows
+    estimate = estimate_peak_bytes(height, width, ndisp, params=trial, channels=channels,
+                                   buckets=buckets)
+    return (f"match in strips with --params holding \"strip_rows\": {rows} "
+            f"(Params.strip_rows={rows}, about {format_gb(estimate)}), or a smaller ndisp or image")

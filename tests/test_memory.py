@@ -11,7 +11,8 @@ import pytest
 
 import sswjax
 from sswjax import memory
-from sswjax.memory import MemoryEstimateError, available_bytes, check_memory, estimate_peak_bytes
+from sswjax.memory import (MemoryEstimateError, available_bytes, check_memory, estimate_peak_bytes,
+                           fit_in_memory)
 
 MEASURE = r"""
 import json, sys
@@ -28,9 +29,9 @@ print(json.dumps(int(status[0]) * 1024))
 
 
 @pytest.mark.parametrize("preset, height, width, ndisp", [("paper", 200, 320, 48),
-                                                          ("accurate", 300, 420, 128)])
+                                                          ("accurate", 480, 640, 192)])
 def test_estimate_is_above_the_measured_peak_within_the_stated_margin(preset, height, width, ndisp):
-    # sizes the fit never saw (measured 0.45 and 0.97 GB here)
+    # sizes the fit never saw, above the compile floor (measured 0.45 and 1.0 GB here)
     run = subprocess.run([sys.executable, "-c", MEASURE, str(height), str(width), str(ndisp), preset],
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
@@ -85,6 +86,39 @@ def test_check_memory_says_what_to_change():
     assert estimate_peak_bytes(1988, 2964, 280, params=accurate.replace(strip_rows=rows)) <= 4.5e9
     with pytest.raises(MemoryEstimateError, match="a smaller ndisp or image"):
         check_memory(1988, 2964, 280, params=accurate, limit=1e8)
+
+
+def test_fit_in_memory_chooses_the_tallest_strips_that_fit():
+    accurate = sswjax.preset("accurate")
+    assert fit_in_memory(497, 741, 70, params=accurate, limit=1e12) is accurate   # fits whole
+    fitted = fit_in_memory(1988, 2964, 280, params=accurate, limit=6e9)
+    rows = fitted.static.strip_rows
+    assert rows in memory.STRIP_HEIGHTS and fitted.static.strip_overlap <= rows
+    assert estimate_peak_bytes(1988, 2964, 280, params=fitted) <= 6e9
+    taller = [r for r in memory.STRIP_HEIGHTS if r > rows]
+    assert all(estimate_peak_bytes(1988, 2964, 280, params=accurate.replace(strip_rows=r)) > 6e9
+               for r in taller)
+    assert fitted.replace(strip_rows=0, strip_overlap=32) == accurate      # nothing else changed
+    explicit = accurate.replace(strip_rows=rows)                           # the user's strips stay
+    assert fit_in_memory(1988, 2964, 280, params=explicit, limit=6e9) is explicit
+    with pytest.raises(MemoryEstimateError, match="more than the limit"):
+        fit_in_memory(1988, 2964, 280, params=accurate.replace(strip_rows=1024), limit=6e9)
+    with pytest.raises(MemoryEstimateError, match="even strips of 16 rows do not fit"):
+        fit_in_memory(1988, 2964, 280, params=accurate, limit=1e8)
+
+
+def test_api_matches_in_strips_when_the_whole_pair_does_not_fit(monkeypatch, texture):
+    right = texture(0, shape=(120, 40, 3))
+    left = np.roll(right, 3, axis=1)
+    params = sswjax.Params()
+    # A model in which only strips of at most 64 rows fit in the 1 GB "available".
+    monkeypatch.setattr(memory, "available_bytes", lambda: 10**9)
+    monkeypatch.setattr(memory, "estimate_peak_bytes",
+                        lambda h, w, d, *, params, **_: (params.static.strip_rows or 10**4) * 1.5e7)
+    automatic = sswjax.match(left, right, 8, params=params)
+    explicit = sswjax.match(left, right, 8, params=params.replace(strip_rows=64),
+                            check_memory=False)
+    np.testing.assert_array_equal(automatic, explicit)
 
 
 def test_api_refuses_what_does_not_fit_unless_told(monkeypatch, texture):
