@@ -58,8 +58,9 @@ def main() -> None:
         argv = ["evaluate", "--methods", ",".join(METHODS), "-o", str(args.output)]
         if args.data is not None:
             argv += ["--data", str(args.data)]
-        if args.params is not None:
-            argv += ["--params", str(args.params)]
+        # The paper's Table 1 compares aggregators within the paper's method: its parameters,
+        # not the library's default preset, unless a file is given.
+        argv += ["--params", str(args.params)] if args.params is not None else ["--preset", "paper"]
         code = sswjax_main(argv)
         if code != 0:
             raise SystemExit(code)

@@ -9,14 +9,16 @@ filling and side-window refinement.
 >>> disparity = sswjax.match(left, right, ndisp=64)          # doctest: +SKIP
 """
 
-from sswjax.params import DynamicParams, Params, StaticParams, load_params, preset, save_params
-from sswjax.registry import PRESETS
+from sswjax.params import (DynamicParams, Params, StaticParams, default_params, load_params, preset,
+                           save_params)
+from sswjax.registry import DEFAULT_PRESET, PRESETS
 from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
 from sswjax.api import Matched, ShapeBuckets, match, match_with_confidence
 from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity, ssw_outputs
 
 __all__ = [
     "Calibration",
+    "DEFAULT_PRESET",
     "DynamicParams",
     "Matched",
     "PRESETS",
@@ -24,6 +26,7 @@ __all__ = [
     "ShapeBuckets",
     "StaticParams",
     "aggregated_cost",
+    "default_params",
     "depth_from_disparity",
     "load_params",
     "match",

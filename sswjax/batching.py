@@ -25,7 +25,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from sswjax._checks import check_rank, check_same_shape
-from sswjax.params import Params, check_params
+from sswjax.params import Params, check_params, default_params
 from sswjax.api import ShapeBuckets, bucket_shape, checked_pair, pad_to_bucket
 from sswjax.pipeline import ssw_disparity
 
@@ -101,6 +101,7 @@ def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devi
     lefts, rights : array_like (B, H, W) or (B, H, W, 1|3|4), uint8, uint16 or float
     ndisp : int, 1 <= ndisp < W
     params : Params, optional
+        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
     devices : sequence of jax.Device, optional
         Default: all of ``jax.devices()``.
 
@@ -120,7 +121,7 @@ def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devi
     check_same_shape("lefts", lefts, "rights", rights)
     if lefts.shape[0] == 0:
         raise ValueError("the batch is empty")
-    params = Params() if params is None else check_params(params)
+    params = default_params() if params is None else check_params(params)
     pairs = [checked_pair(left, right, ndisp, params) for left, right in zip(lefts, rights)]
     left_batch, right_batch = (np.stack(views) for views in zip(*pairs))
     return _run_sharded(left_batch, right_batch, None, params, int(ndisp), device_mesh(devices=devices))
@@ -151,7 +152,7 @@ def iter_match_scenes(
     ndisps : sequence of int
         Each pair's search range 0 .. ndisp - 1, 1 <= ndisp < W.
     params : Params, optional
-        Default ``Params()``.
+        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
     buckets : ShapeBuckets
         Shape bucketing (default ``ShapeBuckets()``); each distinct bucket compiles once.
     devices : sequence of jax.Device, optional
@@ -168,7 +169,7 @@ def iter_match_scenes(
     """
     if len(pairs) != len(ndisps):
         raise ValueError(f"got {len(pairs)} pairs but {len(ndisps)} ndisp values")
-    params = Params() if params is None else check_params(params)
+    params = default_params() if params is None else check_params(params)
     mesh = device_mesh(devices=devices)
     groups: dict[tuple[int, ...], list[int]] = {}
     for index, ((left, right), ndisp) in enumerate(zip(pairs, ndisps)):

@@ -31,22 +31,22 @@ class _Parser(argparse.ArgumentParser):
 
 def _params(args):
     """The parameters a command asked for: ``--params FILE``, else ``--preset NAME``, else the
-    defaults."""
-    from sswjax.params import Params, load_params, preset
+    default preset (``accurate``)."""
+    from sswjax.params import default_params, load_params, preset
 
     if args.params is not None:
         return load_params(args.params)
-    return Params() if args.preset is None else preset(args.preset)
+    return default_params() if args.preset is None else preset(args.preset)
 
 
 def _add_parameter_options(parser, what: str) -> None:
     """``--preset NAME`` or ``--params FILE`` (not both), help from the registry."""
-    from sswjax.registry import preset_summaries
+    from sswjax.registry import DEFAULT_PRESET, preset_summaries
 
     group = parser.add_mutually_exclusive_group()
     presets = "; ".join(f"{name}: {summary}" for name, summary in preset_summaries().items())
     group.add_argument("--preset", choices=list(preset_summaries()),
-                       help=f"{what} parameters by name (default: the built-in defaults). {presets}")
+                       help=f"{what} parameters by name (default: {DEFAULT_PRESET}). {presets}")
     group.add_argument("--params", type=Path, help=f"{what} parameters from a JSON file")
 
 

@@ -98,7 +98,7 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
     height, width, ndisp : int
         The pair's size and disparity count, as given to :func:`sswjax.match`.
     params : Params, optional
-        Default ``Params()``.
+        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
     channels : int
         1 (gray) or 3 (colour) channels matched.
     buckets : ShapeBuckets, optional
@@ -114,10 +114,10 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
     80000.0
     """
     from sswjax.api import bucket_shape
-    from sswjax.params import Params
+    from sswjax.params import default_params
     from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS
 
-    params = Params() if params is None else params
+    params = default_params() if params is None else params
     static = params.static
     if buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, buckets)
@@ -155,7 +155,7 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, cha
     height, width, ndisp : int
         Image size and disparity count.
     params : Params, optional
-        Default ``Params()``: ``disparity_chunk``, ``optimizer``, ``sgm_paths``,
+        Default: the ``accurate`` preset; ``disparity_chunk``, ``optimizer``, ``sgm_paths``,
         ``strip_rows``/``strip_overlap`` and ``n_segments`` change the estimate.
     channels : int
         Channels matched: 1 (gray) or 3 (colour).
@@ -187,9 +187,9 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, cha
 
 
 def _default_params():
-    from sswjax.params import Params
+    from sswjax.params import default_params
 
-    return Params()
+    return default_params()
 
 
 def _cgroup_free(root: Path) -> int | None:
@@ -270,9 +270,9 @@ def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: 
     ...
     sswjax.memory.MemoryEstimateError: ...
     """
-    from sswjax.params import Params
+    from sswjax.params import default_params
 
-    params = Params() if params is None else params
+    params = default_params() if params is None else params
     estimate = estimate_peak_bytes(height, width, ndisp, params=params, channels=channels,
                                    buckets=buckets)
     bound, what = _bound(limit)
@@ -310,9 +310,9 @@ def fit_in_memory(height: int, width: int, ndisp: int, *, params=None, channels:
     >>> 0 < fitted.static.strip_rows < 1988
     True
     """
-    from sswjax.params import Params
+    from sswjax.params import default_params
 
-    params = Params() if params is None else params
+    params = default_params() if params is None else params
     bound, _ = _bound(limit)
     if bound is None or params.static.strip_rows or estimate_peak_bytes(
             height, width, ndisp, params=params, channels=channels, buckets=buckets) <= bound:

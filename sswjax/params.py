@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import jax
 
-from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
+from sswjax.registry import AGGREGATORS, DEFAULT_PRESET, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
 from sswjax.stages.aggregation import WINDOW_SELECTIONS
 from sswjax.stages.fill import SOURCES as FILL_SOURCES
 from sswjax.stages.sgm import PATH_COUNTS, SGM_DTYPES
@@ -362,6 +362,19 @@ def preset(name: str) -> Params:
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
     return Params().replace(**PRESETS[name].changes)
+
+
+def default_params() -> Params:
+    """The parameters used when none are given: the :data:`sswjax.registry.DEFAULT_PRESET`
+    preset (``accurate``), chosen across data sets; ``Params()`` is the paper's method.
+
+    Examples
+    --------
+    >>> from sswjax.params import default_params
+    >>> default_params() == preset("accurate")
+    True
+    """
+    return preset(DEFAULT_PRESET)
 
 
 def load_params(path: str | os.PathLike) -> Params:

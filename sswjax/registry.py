@@ -292,6 +292,11 @@ PRESETS: dict[str, Preset] = {
 }
 """Preset name -> :class:`Preset`."""
 
+DEFAULT_PRESET = "accurate"
+"""The preset of :func:`sswjax.match`, ``match_with_confidence``, the batch functions and the
+CLI when no parameters are given (:func:`sswjax.params.default_params`). ``Params()`` itself
+holds the paper's values (the ``paper`` preset)."""
+
 
 class Peer(NamedTuple):
     """An entry of :data:`PEERS`: another project's matcher and a one-line summary."""

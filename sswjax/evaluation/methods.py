@@ -17,7 +17,7 @@ import numpy as np
 
 from sswjax.api import ShapeBuckets, match
 from sswjax.batching import iter_match_scenes
-from sswjax.params import Params
+from sswjax.params import Params, default_params
 from sswjax.registry import PEERS, method_names, variant_changes
 
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
@@ -61,7 +61,8 @@ def make_method(
     name : str
         One of :func:`sswjax.registry.method_names`.
     params : Params, optional
-        Base parameters of the SSW variants (default ``Params()``); ignored by peers.
+        Base parameters of the SSW variants (default: the ``accurate`` preset,
+        :func:`sswjax.params.default_params`); ignored by peers.
     buckets : ShapeBuckets, optional
         Shape bucketing of the SSW variants (see :func:`sswjax.match`); with it they are
         :class:`BucketedSSW` (batched evaluation over ``devices``).
@@ -79,7 +80,7 @@ def make_method(
         return PEERS[name].fn
     if name not in method_names():
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(method_names())}")
-    variant = (Params() if params is None else params).replace(**variant_changes(name))
+    variant = (default_params() if params is None else params).replace(**variant_changes(name))
     if buckets is not None:
         return BucketedSSW(variant, buckets, None if devices is None else tuple(devices))
 
