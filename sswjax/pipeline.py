@@ -145,7 +145,7 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
 
 
 def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0, *,
-            parabola=None) -> tuple[jax.Array, ConfidenceCues]:
+            parabola=None, guide=None) -> tuple[jax.Array, ConfidenceCues]:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median.
 
     ``parabola``: the three costs of the sub-pixel fit, when they come from another volume than
@@ -168,8 +168,10 @@ def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: 
         if static.lr_check:
             valid = distance <= params.dynamic.lr_tolerance
             failed = ~valid
-            disparity = FILLS[static.fill].fn(disparity, valid, labels=labels,
-                                              num_segments=num_segments, params=params)
+            fill = FILLS[static.fill]
+            extra = {"guide": guide} if fill.uses_guide else {}
+            disparity = fill.fn(disparity, valid, labels=labels,
+                                num_segments=num_segments, params=params, **extra)
         if static.refine_radius > 0 and static.refine_iterations > 0:
             disparity = side_window_median_filter(
                 disparity, radius=static.refine_radius, iterations=static.refine_iterations
@@ -368,11 +370,11 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
                                      params=params)
         winners = _fold_volume(optimised, limit, chunk)
         parabola = _costs_around(cost, winners.disparity) if optimizer.subpixel_on_input else None
-        return _refine(winners, params, limit, labels, num_segments, parabola=parabola)
+        return _refine(winners, params, limit, labels, num_segments, parabola=parabola, guide=left)
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
         winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
-        return _refine(winners, params, limit, labels, num_segments)
+        return _refine(winners, params, limit, labels, num_segments, guide=left)
 
     # Each step aggregates a block of K slices and folds the block of the previous step, which
     # the loop carries: every slice is computed once, and the fold reads a materialised block
@@ -397,4 +399,4 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
     start = (no_winners((height, width)), empty, inf_plane)
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
-    return _refine(winners, params, limit, labels, num_segments)
+    return _refine(winners, params, limit, labels, num_segments, guide=left)

@@ -183,7 +183,6 @@ def test_registry_entry_and_params():
 
 
 @pytest.mark.parametrize("content, message", [
-    ('{"fill": "wmedian"}', "fill 'wmedian' needs the left image: this pipeline does not pass it"),
     ('{"fill_source": "all"}', "parameter fill_source must be one of ('filled', 'valid'), got 'all'"),
 ])
 def test_cli_bad_fill_parameters(small_pair, tmp_path, run_cli, content, message):
