@@ -19,10 +19,11 @@ where the guide's intensity changes between ``p - r`` and ``p``, ``P2(p) = max(P
 penalties are scaled by ``segment_factor`` where ``p - r`` and ``p`` lie in different
 superpixels, so that a disparity jump is cheaper across an object boundary than inside it.
 
-Paths of one axis run in two ``lax.scan`` over that axis, forward then backward (the backward
-scan adds its paths into the forward scan's output): over rows for the vertical and diagonal
-paths, over columns for the horizontal ones, each on the volume transposed so that the scanned
-axis leads.
+Paths of one axis run in two loops over that axis, forward then backward, each adding its
+paths line by line into one loop-carried sum updated in place: over columns for the horizontal
+paths first, then over rows for the vertical and diagonal ones into that sum, each on the volume
+transposed so that the looped axis leads. By default (``cost_bound`` given, ``Params.sgm_dtype
+= "int16"``) the paths run on the cost quantised to int16, as OpenCV's SGBM does.
 """
 
 from __future__ import annotations
