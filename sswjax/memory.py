@@ -278,10 +278,9 @@ def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: 
     bound, what = _bound(limit)
     if bound is None or estimate <= bound:
         return estimate
-    raise MemoryEstimateError(
-        f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
-        f"{what} ({format_gb(bound)}): {_advice(height, width, ndisp, params, channels, buckets, bound)}",
-        estimate=estimate, limit=int(bound))
+    raise _refusal(height, width, ndisp, estimate, bound, what,
+                   _tallest_strips(height, width, ndisp, params, channels, buckets, bound),
+                   channels=channels, buckets=buckets)
 
 
 def fit_in_memory(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
@@ -313,17 +312,16 @@ def fit_in_memory(height: int, width: int, ndisp: int, *, params=None, channels:
     from sswjax.params import default_params
 
     params = default_params() if params is None else params
-    bound, _ = _bound(limit)
-    if bound is None or params.static.strip_rows or estimate_peak_bytes(
-            height, width, ndisp, params=params, channels=channels, buckets=buckets) <= bound:
-        check_memory(height, width, ndisp, params=params, channels=channels, buckets=buckets,
-                     limit=limit)
+    estimate = estimate_peak_bytes(height, width, ndisp, params=params, channels=channels,
+                                   buckets=buckets)
+    bound, what = _bound(limit)
+    if bound is None or estimate <= bound:
         return params
     strips = _tallest_strips(height, width, ndisp, params, channels, buckets, bound)
-    if strips is None:
-        check_memory(height, width, ndisp, params=params, channels=channels, buckets=buckets,
-                     limit=limit)  # raises, with the advice
-    return strips
+    if strips is not None and not params.static.strip_rows:
+        return strips
+    raise _refusal(height, width, ndisp, estimate, bound, what, strips, channels=channels,
+                   buckets=buckets)
 
 
 def _bound(limit):
@@ -348,14 +346,20 @@ def _tallest_strips(height, width, ndisp, params, channels, buckets, bound):
     return None
 
 
-def _advice(height, width, ndisp, params, channels, buckets, bound) -> str:
-    """What to change so the call fits: the tallest strips that fit, else a smaller ndisp."""
-    trial = _tallest_strips(height, width, ndisp, params, channels, buckets, bound)
-    if trial is None:
-        return ("a smaller ndisp or image (even strips of 16 rows do not fit), or a larger "
-                "--max-memory")
-    rows = trial.static.strip_rows
-    estimate = estimate_peak_bytes(height, width, ndisp, params=trial, channels=channels,
-                                   buckets=buckets)
-    return (f"match in strips with --params holding \"strip_rows\": {rows} "
-            f"(Params.strip_rows={rows}, about {format_gb(estimate)}), or a smaller ndisp or image")
+def _refusal(height, width, ndisp, estimate, bound, what, strips, *, channels, buckets
+             ) -> MemoryEstimateError:
+    """The one-line refusal, with what to change: ``strips`` (the tallest that fit, from
+    :func:`_tallest_strips`), else a smaller ndisp or image."""
+    if strips is None:
+        advice = ("a smaller ndisp or image (even strips of 16 rows do not fit), or a larger "
+                  "--max-memory")
+    else:
+        rows = strips.static.strip_rows
+        fitted = estimate_peak_bytes(height, width, ndisp, params=strips, channels=channels,
+                                     buckets=buckets)
+        advice = (f"match in strips with --params holding \"strip_rows\": {rows} "
+                  f"(Params.strip_rows={rows}, about {format_gb(fitted)}), or a smaller ndisp or "
+                  "image")
+    return MemoryEstimateError(
+        f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
+        f"{what} ({format_gb(bound)}): {advice}", estimate=estimate, limit=int(bound))
