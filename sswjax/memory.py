@@ -36,6 +36,7 @@ CPU backend with the ``ssw`` aggregator; other aggregators are estimated as ``ss
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -129,17 +130,20 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
     uses_segments = (AGGREGATORS[static.aggregation].uses_segments
                      or OPTIMIZERS[static.optimizer].uses_segments
                      or (static.lr_check and FILLS[static.fill].uses_segments))
+    # Coarse-to-fine: the images and one plane at full size, the volumes on the halved pair.
+    matched = plane / 4 ** static.coarse_levels
+    ndisp = max(1, math.ceil(ndisp / 2 ** static.coarse_levels))
     whole = static.disparity_chunk == 0 or static.disparity_chunk >= ndisp
     sgm = OPTIMIZERS[static.optimizer].fn is not None
     return {
         "base": 1.0,
         "image": float(height * width * channels),
         "window": plane,
-        "slic": plane if static.n_segments > 0 and uses_segments else 0.0,
-        "blocks": 0.0 if whole else plane * min(static.disparity_chunk, ndisp),
-        "volume": plane * ndisp if whole else 0.0,
-        "sgm": plane * ndisp if sgm else 0.0,
-        "sgm8": plane * ndisp if sgm and static.sgm_paths == 8 else 0.0,
+        "slic": matched if static.n_segments > 0 and uses_segments else 0.0,
+        "blocks": 0.0 if whole else matched * min(static.disparity_chunk, ndisp),
+        "volume": matched * ndisp if whole else 0.0,
+        "sgm": matched * ndisp if sgm else 0.0,
+        "sgm8": matched * ndisp if sgm and static.sgm_paths == 8 else 0.0,
     }
 
 

@@ -94,6 +94,15 @@ class StaticParams(NamedTuple):
         many rows, each seen with ``strip_overlap`` more rows above and below
         (:func:`sswjax.api.in_strips`): memory follows the strip, not the image. 0 (default):
         the whole image at once.
+    coarse_levels : int
+        0 (default): the method runs on the images as given. ``L > 0``: coarse-to-fine, it runs
+        on the pair halved ``L`` times (:func:`~sswjax.stages.pyramid.halve_image`, ``ndisp``
+        halved too), and the map is doubled back ``L`` times by
+        :func:`~sswjax.stages.upsampling.upsample_disparity` guided by the left image: about
+        ``8 ** L`` times less volume work (the ``fast`` preset).
+    upsample_radius : int
+        Radius of the side-window median (``refine_iterations`` passes) after each doubling of
+        ``coarse_levels``; 0 disables it.
     """
 
     census_height: int = 7
@@ -120,6 +129,8 @@ class StaticParams(NamedTuple):
     lcn_radius: int = 7
     strip_rows: int = 0
     strip_overlap: int = 32
+    coarse_levels: int = 0
+    upsample_radius: int = 1
 
 
 class DynamicParams(NamedTuple):
@@ -165,6 +176,10 @@ class DynamicParams(NamedTuple):
     fill_quantile : float, in (0, 1]
         The weighted quantile ``fill="wmedian"`` takes: 0.5 the median, less leans towards the
         background (smaller disparities).
+    upsample_jump : float
+        ``coarse_levels > 0``: largest spread (fine pixels) of the four coarse neighbours'
+        disparities that a doubled pixel interpolates; beyond it the pixel takes the neighbour
+        of the nearest colour (:func:`~sswjax.stages.upsampling.upsample_disparity`).
     """
 
     tad_weight: Any = 0.05000000074505806
@@ -185,6 +200,7 @@ class DynamicParams(NamedTuple):
     lcn_eps: Any = 4 / 255
     fill_eps: Any = 1e-3
     fill_quantile: Any = 0.5
+    upsample_jump: Any = 3.0
 
 
 @jax.tree_util.register_dataclass
@@ -246,6 +262,8 @@ _INT_FIELDS = {
     "fill_weight_radius": (1, 50),
     "strip_rows": (0, 1_000_000),
     "strip_overlap": (0, 10_000),
+    "coarse_levels": (0, 4),
+    "upsample_radius": (0, 7),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,

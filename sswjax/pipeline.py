@@ -21,12 +21,15 @@ from sswjax.stages.aggregation import SegmentTerm
 from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
 from sswjax.stages.filters import side_window_median_filter
+from sswjax.stages.pyramid import halve_image
 from sswjax.stages.refinement import left_right_distance
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
+from sswjax.stages.upsampling import double_nearest, upsample_disparity
 
 
-STAGES = ("cost", "superpixels", "aggregation", "optimization", "selection", "refinement")
+STAGES = ("cost", "superpixels", "aggregation", "optimization", "selection", "refinement",
+          "upsampling")
 """Named scopes (``jax.named_scope``) of the stages in the compiled graph: profiler traces
 attribute each operation to one of them (``benchmarks/speed.py``)."""
 
@@ -355,6 +358,8 @@ def ssw_cues(
 def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Array, ConfidenceCues]:
     """The body of :func:`ssw_disparity`: the map and its confidence cues."""
     _check_pair(left, right, ndisp)
+    if params.static.coarse_levels > 0:
+        return _match_coarse_to_fine(left, right, params, ndisp, valid_ndisp)
     limit = ndisp if valid_ndisp is None else valid_ndisp
     features, labels, num_segments = _features(left, right, params)
     chunk = params.static.disparity_chunk
@@ -400,3 +405,30 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
     return _refine(winners, params, limit, labels, num_segments, guide=left)
+
+
+def _match_coarse_to_fine(left, right, params: Params, ndisp: int,
+                          valid_ndisp) -> tuple[jax.Array, ConfidenceCues]:
+    """``coarse_levels = L > 0``: the method with ``L - 1`` levels on the pair halved, its map
+    doubled back guided by the left image (:mod:`sswjax.stages.upsampling`), then a small
+    side-window median. The confidence cues are the coarse ones, each on the fine pixels its
+    coarse pixel covers (disparities and distances doubled)."""
+    static = params.static
+    limit = ndisp if valid_ndisp is None else valid_ndisp
+    small_left, small_right = halve_image(left), halve_image(right)
+    # Fine disparities 0 .. ndisp - 1 are coarse 0 .. (ndisp - 1) / 2: ndisp // 2 + 1 of them,
+    # within the halved width.
+    coarse_ndisp = min(ndisp // 2 + 1, small_left.shape[1] - 1)
+    coarse_limit = None if valid_ndisp is None else jnp.minimum(valid_ndisp // 2 + 1, coarse_ndisp)
+    inner = params.replace(coarse_levels=static.coarse_levels - 1)
+    coarse, cues = _match(small_left, small_right, inner, coarse_ndisp, coarse_limit)
+    shape = left.shape[:2]
+    with jax.named_scope(STAGES[6]):
+        disparity = upsample_disparity(coarse, left, small_left, jump=params.dynamic.upsample_jump)
+        if static.upsample_radius > 0 and static.refine_iterations > 0:
+            disparity = side_window_median_filter(
+                disparity, radius=static.upsample_radius, iterations=static.refine_iterations)
+        disparity = jnp.clip(disparity, 0, limit - 1)
+        doubled = ConfidenceCues(*(double_nearest(cue, shape=shape) for cue in cues))
+        cues = doubled._replace(lr_distance=2 * doubled.lr_distance, initial=2 * doubled.initial)
+    return disparity, cues
