@@ -117,11 +117,23 @@ def double_volume(coarse: jax.Array, *, shape: tuple[int, int, int]) -> jax.Arra
 
 
 def _double_axis(x: jax.Array, axis: int) -> jax.Array:
+    before, after = axis_neighbours(x, axis)
+    return interleave(0.75 * x + 0.25 * before, 0.75 * x + 0.25 * after, axis)
+
+
+def axis_neighbours(x: jax.Array, axis: int) -> tuple[jax.Array, jax.Array]:
+    """Each element's neighbours before and after it along ``axis``, the borders repeated
+    (shapes of ``x``): what doubling an axis with half-pixel centres reads."""
     n = x.shape[axis]
     before = jnp.concatenate([jax.lax.slice_in_dim(x, 0, 1, axis=axis),
                               jax.lax.slice_in_dim(x, 0, n - 1, axis=axis)], axis=axis)
     after = jnp.concatenate([jax.lax.slice_in_dim(x, 1, n, axis=axis),
                              jax.lax.slice_in_dim(x, n - 1, n, axis=axis)], axis=axis)
-    even, odd = 0.75 * x + 0.25 * before, 0.75 * x + 0.25 * after
+    return before, after
+
+
+def interleave(even: jax.Array, odd: jax.Array, axis: int) -> jax.Array:
+    """``even[i]`` at ``2 i`` and ``odd[i]`` at ``2 i + 1`` along ``axis`` (same shapes in, that
+    axis doubled out): slices and a reshape, no gather."""
     pairs = jnp.stack([even, odd], axis=axis + 1)
-    return pairs.reshape(x.shape[:axis] + (2 * n,) + x.shape[axis + 1:])
+    return pairs.reshape(even.shape[:axis] + (2 * even.shape[axis],) + even.shape[axis + 1:])

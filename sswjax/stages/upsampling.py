@@ -28,28 +28,21 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_rank
+from sswjax.stages.pyramid import axis_neighbours, interleave
 
 __all__ = ["double_nearest", "upsample_disparity"]
 
 
 def _neighbours(coarse: jax.Array, axis: int, fine: int) -> tuple[jax.Array, jax.Array, jax.Array]:
     """The two nearest coarse values along ``axis`` of each fine index (clipped at the borders)
-    and the bilinear weight of the first, as slices of the edge-padded array interleaved: fine
-    ``2 i`` lies between coarse ``i - 1`` (weight 1/4) and ``i`` (3/4), fine ``2 i + 1`` between
-    ``i`` (3/4) and ``i + 1`` (1/4). Slices, not gathers: XLA CPU runs them as plain copies."""
-    size = coarse.shape[axis]
-    padded = jnp.concatenate([lax.slice_in_dim(coarse, 0, 1, axis=axis), coarse,
-                              lax.slice_in_dim(coarse, size - 1, size, axis=axis)], axis=axis)
-
-    def interleaved(start_even: int, start_odd: int) -> jax.Array:
-        even = lax.slice_in_dim(padded, start_even, start_even + size, axis=axis)
-        odd = lax.slice_in_dim(padded, start_odd, start_odd + size, axis=axis)
-        both = jnp.stack([even, odd], axis=axis + 1)
-        shape = (*coarse.shape[:axis], 2 * size, *coarse.shape[axis + 1:])
-        return lax.slice_in_dim(both.reshape(shape), 0, fine, axis=axis)
-
+    and the bilinear weight of the first: fine ``2 i`` lies between coarse ``i - 1`` (weight
+    1/4) and ``i`` (3/4), fine ``2 i + 1`` between ``i`` (3/4) and ``i + 1`` (1/4). Slices, not
+    gathers: XLA CPU runs them as plain copies."""
+    before, after = axis_neighbours(coarse, axis)
+    first = lax.slice_in_dim(interleave(before, coarse, axis), 0, fine, axis=axis)
+    second = lax.slice_in_dim(interleave(coarse, after, axis), 0, fine, axis=axis)
     weight = jnp.where(jnp.arange(fine) % 2 == 0, 0.25, 0.75).astype(jnp.float32)
-    return interleaved(0, 1), interleaved(1, 2), weight
+    return first, second, weight
 
 
 def _check_sizes(coarse_shape, fine_shape) -> None:
@@ -148,4 +141,5 @@ def double_nearest(values: jax.Array, *, shape: tuple[int, int]) -> jax.Array:
     """
     check_rank("values", values, 2)
     _check_sizes(values.shape, shape)
-    return values[jnp.arange(shape[0]) // 2][:, jnp.arange(shape[1]) // 2]
+    doubled = jnp.repeat(jnp.repeat(values, 2, axis=0), 2, axis=1)
+    return doubled[:shape[0], :shape[1]]
