@@ -25,6 +25,7 @@ from sswjax.stages.pyramid import halve_image
 from sswjax.stages.refinement import left_right_distance
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
+from sswjax.stages.sgm import PathSums, sum_planes
 from sswjax.stages.upsampling import double_nearest, upsample_disparity
 
 
@@ -245,19 +246,34 @@ def _costs_around(cost: jax.Array, disparity: jax.Array) -> tuple[jax.Array, jax
     return at(-1), at(0), at(1)
 
 
-def _fold_volume(cost: jax.Array, limit, chunk: int) -> Winners:
-    """The winners of both views over a whole volume (D, H, W), ``chunk`` planes per step of a
-    ``lax.scan`` (0: all planes in one unrolled fold). Each step gathers its planes with their
-    halo; indices outside the volume are clipped, and the fold masks their disparities."""
-    ndisp = cost.shape[0]
+def _fold_volume(cost, limit, chunk: int) -> Winners:
+    """The winners of both views over a whole volume, float32 (D, H, W) or the
+    :class:`~sswjax.stages.sgm.PathSums` of the paths (read plane by plane, never transposed),
+    ``chunk`` planes per step of a ``lax.scan`` (0: all planes in one unrolled fold). Each step
+    gathers its planes with their halo; indices outside the volume are clipped, and the fold
+    masks their disparities."""
+    if isinstance(cost, PathSums):
+        ndisp, size = cost.sums.shape[1], (cost.sums.shape[0], cost.sums.shape[2])
+
+        def planes_at(indices):
+            return sum_planes(cost, indices)
+    else:
+        ndisp, size = cost.shape[0], cost.shape[1:]
+
+        def planes_at(indices):
+            block = jnp.take(cost, indices, axis=0)
+            return [block[k] for k in range(block.shape[0])]
+
     if chunk == 0 or chunk >= ndisp:
-        return _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
+        planes = (planes_at(jnp.clip(jnp.arange(-1, ndisp + 1), 0, ndisp - 1))
+                  if isinstance(cost, PathSums) else _with_halo(cost))
+        return _fold(no_winners(size), planes, 0, limit)
 
     def step(state, first):
-        planes = jnp.take(cost, jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1), axis=0)
+        planes = planes_at(jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1))
         return _fold(state, planes, first, limit), None
 
-    winners, _ = jax.lax.scan(step, no_winners(cost.shape[1:]), jnp.arange(0, ndisp, chunk))
+    winners, _ = jax.lax.scan(step, no_winners(size), jnp.arange(0, ndisp, chunk))
     return winners
 
 

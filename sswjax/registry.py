@@ -44,7 +44,7 @@ from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
 from sswjax.stages.fill import weighted_median_fill
 from sswjax.stages.refinement import fill_invalid
-from sswjax.stages.sgm import half_resolution_semi_global, semi_global
+from sswjax.stages.sgm import half_resolution_semi_global, semi_global_sums
 from sswjax.stages.baselines import (
     bilateral_filter,
     box_filter,
@@ -136,7 +136,9 @@ class Optimizer(NamedTuple):
     Attributes
     ----------
     fn : callable or None
-        ``fn(cost, guide, *, labels, params) -> cost``; ``None``: no optimisation.
+        ``fn(cost, guide, *, labels, params) -> cost``, a float32 (D, H, W) volume or the
+        :class:`~sswjax.stages.sgm.PathSums` that :func:`~sswjax.stages.sgm.as_volume` turns
+        into one (the selection reads its planes directly); ``None``: no optimisation.
     summary : str
         One line for the CLI's help and the tables.
     uses_segments : bool
@@ -169,9 +171,10 @@ def _cost_bound(params):
 
 def _semi_global(cost, guide, *, labels, params):
     static, dynamic = params.static, params.dynamic
-    return semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2, sigma=dynamic.sgm_sigma,
-                       paths=static.sgm_paths, labels=labels,
-                       segment_factor=dynamic.sgm_segment_factor, cost_bound=_cost_bound(params))
+    return semi_global_sums(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
+                            sigma=dynamic.sgm_sigma, paths=static.sgm_paths, labels=labels,
+                            segment_factor=dynamic.sgm_segment_factor,
+                            cost_bound=_cost_bound(params))
 
 
 def _half_resolution_semi_global(cost, guide, *, labels, params):

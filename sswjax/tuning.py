@@ -57,6 +57,7 @@ from sswjax.params import DynamicParams, Params, StaticParams
 from sswjax.pipeline import aggregated_cost, superpixels
 from sswjax.registry import OPTIMIZERS
 from sswjax.stages.selection import soft_argmin
+from sswjax.stages.sgm import as_volume
 
 WEIGHTS = ("tad_weight", "gradient_weight", "census_weight")
 TRUNCATION_RANGES = {"tad_truncation": (0.002, 0.3), "gradient_truncation": (0.005, 1.0)}
@@ -251,7 +252,8 @@ def soft_disparity(raw, left, right, *, static: StaticParams, ndisp: int, base: 
     optimizer = OPTIMIZERS[static.optimizer]
     if optimizer.fn is not None:
         labels, num_segments = superpixels(left, params)
-        cost = optimizer.fn(cost, left, labels=labels if num_segments else None, params=params)
+        cost = as_volume(optimizer.fn(cost, left, labels=labels if num_segments else None,
+                                      params=params))
         if scene_ndisp is not None:
             cost = jnp.where(d < scene_ndisp, cost, OUT_OF_RANGE_COST)
     return soft_argmin(cost, temperature=temperature)

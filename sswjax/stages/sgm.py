@@ -24,9 +24,14 @@ paths line by line into one loop-carried sum updated in place: over columns for 
 paths first, then over rows for the vertical and diagonal ones into that sum, each on the volume
 transposed so that the looped axis leads. By default (``cost_bound`` given, ``Params.sgm_dtype
 = "int16"``) the paths run on the cost quantised to int16, as OpenCV's SGBM does.
+:func:`semi_global_sums` returns the sum as the scans leave it (:class:`PathSums`, rows first,
+int16), which the selection reads plane by plane; :func:`semi_global` returns it as a float32
+volume.
 """
 
 from __future__ import annotations
+
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -35,13 +40,51 @@ from jax import lax
 from sswjax._checks import check_floating, check_rank
 from sswjax.stages.pyramid import double_volume, halve_image, halve_volume
 
-__all__ = ["PATH_COUNTS", "SGM_DTYPES", "half_resolution_semi_global", "path_penalties", "semi_global"]
+__all__ = ["PATH_COUNTS", "SGM_DTYPES", "PathSums", "as_volume", "half_resolution_semi_global",
+           "path_penalties", "semi_global", "semi_global_sums", "sum_planes"]
 
 PATH_COUNTS = (4, 8)
 """Supported numbers of paths."""
 
 SGM_DTYPES = ("int16", "float32")
 """What the paths compute in (``Params.sgm_dtype``): see ``cost_bound`` of :func:`semi_global`."""
+
+
+class PathSums(NamedTuple):
+    """The sum of the paths as the scans leave it, before any transpose or conversion.
+
+    Attributes
+    ----------
+    sums : int16 or float32 (H, D, W)
+        Rows first: the layout of the vertical scans.
+    scale : float32 scalar or None
+        Quantisation steps per cost unit of int16 ``sums`` (the cost is ``sums / scale``);
+        ``None`` for float32 sums, which are the cost.
+    """
+
+    sums: jax.Array
+    scale: Any
+
+
+def sum_planes(path_sums: PathSums, disparities: jax.Array) -> list[jax.Array]:
+    """Float32 (H, W) cost planes of ``path_sums`` at int32 ``disparities`` (K,), in range.
+
+    The conversion happens in the consumer's pass, so the float32 (D, H, W) volume is never
+    written.
+    """
+    block = jnp.take(path_sums.sums, disparities, axis=1)
+    planes = [block[:, k] for k in range(block.shape[1])]
+    if path_sums.scale is None:
+        return planes
+    return [plane.astype(jnp.float32) / path_sums.scale for plane in planes]
+
+
+def as_volume(cost) -> jax.Array:
+    """The float32 (D, H, W) cost volume of a :class:`PathSums` (an array is returned as is)."""
+    if not isinstance(cost, PathSums):
+        return cost
+    volume = cost.sums.transpose(1, 0, 2)
+    return volume if cost.scale is None else volume.astype(jnp.float32) / cost.scale
 
 
 def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
@@ -167,7 +210,33 @@ def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total:
     return run(run(total, False), True)
 
 
-def semi_global(
+def semi_global(cost: jax.Array, guide: jax.Array, **options) -> jax.Array:
+    """Semi-global aggregation of a cost volume: the sum of ``paths`` path costs (Eq. 13-14).
+
+    Parameters
+    ----------
+    cost : float32 (D, H, W)
+    guide : float32 (H, W, C)
+    **options
+        Keyword-only, those of :func:`semi_global_sums` (``p1``, ``p2``, ``sigma``, ``paths``,
+        ``labels``, ``segment_factor``, ``cost_bound``).
+
+    Returns
+    -------
+    float32 (D, H, W), lower is better; ``paths`` times the scale of ``cost``.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> cost = jnp.ones((3, 4, 5)).at[1].set(0.0)
+    >>> s = semi_global(cost, jnp.zeros((4, 5, 1)), p1=0.1, p2=0.5, paths=4)
+    >>> s.shape, int(s.argmin(axis=0).max())
+    ((3, 4, 5), 1)
+    """
+    return as_volume(semi_global_sums(cost, guide, **options))
+
+
+def semi_global_sums(
     cost: jax.Array,
     guide: jax.Array,
     *,
@@ -178,8 +247,11 @@ def semi_global(
     labels: jax.Array | None = None,
     segment_factor=1.0,
     cost_bound=None,
-) -> jax.Array:
-    """Semi-global aggregation of a cost volume: the sum of ``paths`` path costs (Eq. 13-14).
+) -> PathSums:
+    """:func:`semi_global` as the scans leave it: the sums rows first, int16 with ``cost_bound``.
+
+    :func:`as_volume` of the result is the float32 (D, H, W) volume; :func:`sum_planes` reads
+    planes of it without writing that volume.
 
     Parameters
     ----------
@@ -203,20 +275,21 @@ def semi_global(
         such as out-of-range disparities, stay above every real cost) and quantised with the
         largest scale at which no sum of ``paths`` paths can overflow, ``(2 ** 15 - 1 - 2 *
         paths) / (paths * (2 * cost_bound + max(p1, p2)))`` steps per cost unit (about 3000
-        for 4 paths and a bound of 1); the result is converted back to cost units. Not
+        for 4 paths and a bound of 1); ``scale`` of the result converts back to cost units. Not
         differentiable: leave it ``None`` (float32) for gradients.
 
     Returns
     -------
-    float32 (D, H, W), lower is better; ``paths`` times the scale of ``cost``.
+    PathSums
+        ``sums`` (H, D, W), int16 with ``cost_bound``, else float32.
 
     Examples
     --------
     >>> import jax.numpy as jnp
     >>> cost = jnp.ones((3, 4, 5)).at[1].set(0.0)
-    >>> s = semi_global(cost, jnp.zeros((4, 5, 1)), p1=0.1, p2=0.5, paths=4)
-    >>> s.shape, int(s.argmin(axis=0).max())
-    ((3, 4, 5), 1)
+    >>> s = semi_global_sums(cost, jnp.zeros((4, 5, 1)), p1=0.1, p2=0.5, paths=4, cost_bound=1.0)
+    >>> s.sums.shape, s.sums.dtype, int(s.sums.argmin(axis=1).max())
+    ((4, 3, 5), dtype('int16'), 1)
     """
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
@@ -256,8 +329,8 @@ def semi_global(
         (jnp.transpose(work, (1, 0, 2)), jnp.transpose(work, (2, 0, 1))))
     pens_h = {(True, 0): penalties((0, 1), True), (False, 0): penalties((0, -1), True)}
     total = _scan_axis(columns, pens_h, (0,), jnp.zeros_like(columns))
-    total = _scan_axis(rows, pens, shifts, jnp.transpose(total, (2, 1, 0))).transpose(1, 0, 2)
-    return total if scale is None else total.astype(jnp.float32) / scale
+    total = _scan_axis(rows, pens, shifts, jnp.transpose(total, (2, 1, 0)))
+    return PathSums(total, scale)
 
 
 def _quantise(values: jax.Array, scale) -> jax.Array:

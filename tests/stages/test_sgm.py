@@ -5,7 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.sgm import path_penalties, semi_global
+from sswjax.pipeline import _fold_volume
+from sswjax.stages.sgm import as_volume, path_penalties, semi_global, semi_global_sums, sum_planes
 
 DIRECTIONS = {4: [(0, 1), (0, -1), (1, 0), (-1, 0)],
               8: [(0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, -1), (-1, 1)]}
@@ -121,6 +122,25 @@ def test_semi_global_fills_a_textureless_band():
     cost[:, :, 4:8] = 0.5
     summed = semi_global(jnp.asarray(cost), jnp.zeros((8, 12, 1)), p1=0.05, p2=0.3, paths=4)
     assert (np.asarray(summed).argmin(axis=0) == 2).all()
+
+
+@pytest.mark.parametrize("cost_bound", [None, 2.0])
+def test_path_sums_read_as_the_volume(cost_bound):
+    # Planes read from the sums as the scans leave them equal the transposed volume's, and the
+    # winners folded from either are the same.
+    rng = np.random.default_rng(5)
+    cost = jnp.asarray(rng.random((7, 6, 9)).astype(np.float32))
+    guide = jnp.asarray(rng.random((6, 9, 3)).astype(np.float32))
+    sums = semi_global_sums(cost, guide, p1=0.1, p2=0.5, paths=4, cost_bound=cost_bound)
+    volume = as_volume(sums)
+    assert volume.shape == (7, 6, 9) and volume.dtype == jnp.float32
+    planes = sum_planes(sums, jnp.asarray([3, 0, 6]))
+    for plane, d in zip(planes, (3, 0, 6)):
+        np.testing.assert_allclose(plane, volume[d], rtol=1e-6)
+    for chunk in (0, 3):
+        ours, reference = _fold_volume(sums, 7, chunk), _fold_volume(volume, 7, chunk)
+        for a, b in zip(ours, reference):   # indices exact, costs to the division's rounding
+            np.testing.assert_allclose(a, b, rtol=1e-6)
 
 
 def test_semi_global_is_differentiable():
