@@ -248,29 +248,18 @@ def _costs_around(cost: jax.Array, disparity: jax.Array) -> tuple[jax.Array, jax
 
 def _fold_volume(cost, limit, chunk: int) -> Winners:
     """The winners of both views over a whole volume, float32 (D, H, W) or the
-    :class:`~sswjax.stages.sgm.PathSums` of the paths (read plane by plane, never transposed),
+    :class:`~sswjax.stages.sgm.PathSums` of the paths (converted plane by plane as it is read),
     ``chunk`` planes per step of a ``lax.scan`` (0: all planes in one unrolled fold). Each step
     gathers its planes with their halo; indices outside the volume are clipped, and the fold
     masks their disparities."""
-    if isinstance(cost, PathSums):
-        ndisp, size = cost.sums.shape[1], (cost.sums.shape[0], cost.sums.shape[2])
-
-        def planes_at(indices):
-            return sum_planes(cost, indices)
-    else:
-        ndisp, size = cost.shape[0], cost.shape[1:]
-
-        def planes_at(indices):
-            block = jnp.take(cost, indices, axis=0)
-            return [block[k] for k in range(block.shape[0])]
-
+    sums = cost if isinstance(cost, PathSums) else PathSums(cost, None)
+    ndisp, size = sums.sums.shape[0], sums.sums.shape[1:]
     if chunk == 0 or chunk >= ndisp:
-        planes = (planes_at(jnp.clip(jnp.arange(-1, ndisp + 1), 0, ndisp - 1))
-                  if isinstance(cost, PathSums) else _with_halo(cost))
+        planes = sum_planes(sums, [0, *range(ndisp), ndisp - 1])
         return _fold(no_winners(size), planes, 0, limit)
 
     def step(state, first):
-        planes = planes_at(jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1))
+        planes = sum_planes(sums, jnp.clip(first - 1 + jnp.arange(chunk + 2), 0, ndisp - 1))
         return _fold(state, planes, first, limit), None
 
     winners, _ = jax.lax.scan(step, no_winners(size), jnp.arange(0, ndisp, chunk))

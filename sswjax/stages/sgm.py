@@ -21,12 +21,12 @@ superpixels, so that a disparity jump is cheaper across an object boundary than 
 
 Paths of one axis run in two loops over that axis, forward then backward, each adding its
 paths line by line into one loop-carried sum updated in place: over columns for the horizontal
-paths first, then over rows for the vertical and diagonal ones into that sum, each on the volume
-transposed so that the looped axis leads. By default (``cost_bound`` given, ``Params.sgm_dtype
-= "int16"``) the paths run on the cost quantised to int16, as OpenCV's SGBM does.
-:func:`semi_global_sums` returns the sum as the scans leave it (:class:`PathSums`, rows first,
-int16), which the selection reads plane by plane; :func:`semi_global` returns it as a float32
-volume.
+paths first, on the volume's planes transposed, then over rows for the vertical and diagonal
+ones into that sum, on the volume as it is. A line is a (D, N) slice, D contiguous runs. By
+default (``cost_bound`` given, ``Params.sgm_dtype = "int16"``) the paths run on the cost
+quantised to int16, as OpenCV's SGBM does. :func:`semi_global_sums` returns the sum as the
+scans leave it (:class:`PathSums`, int16), which the selection reads plane by plane, converting
+as it goes; :func:`semi_global` returns it as a float32 volume.
 """
 
 from __future__ import annotations
@@ -51,12 +51,11 @@ SGM_DTYPES = ("int16", "float32")
 
 
 class PathSums(NamedTuple):
-    """The sum of the paths as the scans leave it, before any transpose or conversion.
+    """The sum of the paths as the scans leave it, before any conversion.
 
     Attributes
     ----------
-    sums : int16 or float32 (H, D, W)
-        Rows first: the layout of the vertical scans.
+    sums : int16 or float32 (D, H, W)
     scale : float32 scalar or None
         Quantisation steps per cost unit of int16 ``sums`` (the cost is ``sums / scale``);
         ``None`` for float32 sums, which are the cost.
@@ -66,14 +65,19 @@ class PathSums(NamedTuple):
     scale: Any
 
 
-def sum_planes(path_sums: PathSums, disparities: jax.Array) -> list[jax.Array]:
-    """Float32 (H, W) cost planes of ``path_sums`` at int32 ``disparities`` (K,), in range.
+def sum_planes(path_sums: PathSums, disparities) -> list[jax.Array]:
+    """Float32 (H, W) cost planes of ``path_sums`` at ``disparities``, in range: int32 (K,)
+    (gathered), or a sequence of ints (sliced, no copy).
 
     The conversion happens in the consumer's pass, so the float32 (D, H, W) volume is never
     written.
     """
-    block = jnp.take(path_sums.sums, disparities, axis=1)
-    planes = [block[:, k] for k in range(block.shape[1])]
+    sums = path_sums.sums
+    if isinstance(disparities, (list, tuple)):
+        planes = [sums[d] for d in disparities]
+    else:
+        block = jnp.take(sums, disparities, axis=0)
+        planes = [block[k] for k in range(block.shape[0])]
     if path_sums.scale is None:
         return planes
     return [plane.astype(jnp.float32) / path_sums.scale for plane in planes]
@@ -83,8 +87,7 @@ def as_volume(cost) -> jax.Array:
     """The float32 (D, H, W) cost volume of a :class:`PathSums` (an array is returned as is)."""
     if not isinstance(cost, PathSums):
         return cost
-    volume = cost.sums.transpose(1, 0, 2)
-    return volume if cost.scale is None else volume.astype(jnp.float32) / cost.scale
+    return cost.sums if cost.scale is None else cost.sums.astype(jnp.float32) / cost.scale
 
 
 def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
@@ -177,15 +180,16 @@ def _shift_line(line: jax.Array, dx: int) -> jax.Array:
 
 def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total: jax.Array
                ) -> jax.Array:
-    """``total`` plus the paths along axis 0 of ``cost`` (S, D, N), forward then backward.
+    """``total`` plus the paths along axis 1 of ``cost`` (D, S, N), forward then backward.
 
     ``shifts`` are the per-step shifts along N of the paths (0 straight, +-1 diagonal);
-    ``penalties[(forward, shift)]`` are their (P1, P2) maps, (S, N) each. Each step reads the
-    line of ``total`` it reaches, adds its paths and writes it back in place (a loop-carried
-    buffer that XLA updates without copying), so the sum of every path of both axes needs one
-    volume besides the inputs.
+    ``penalties[(forward, shift)]`` are their (P1, P2) maps, (S, N) each. A line is the (D, N)
+    slice at one step: D runs of N contiguous values, read without transposing the volume.
+    Each step reads the line of ``total`` it reaches, adds its paths and writes it back in
+    place (a loop-carried buffer that XLA updates without copying), so the sum of every path of
+    both axes needs one volume besides the inputs.
     """
-    steps = cost.shape[0]
+    steps = cost.shape[1]
 
     def run(total, reverse):
         pens = {shift: penalties[(not reverse, shift)] for shift in shifts}
@@ -193,8 +197,8 @@ def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total:
         def step(i, state):
             lines, total = state
             s = steps - 1 - i if reverse else i
-            line_cost = lax.dynamic_index_in_dim(cost, s, keepdims=False)
-            partial = lax.dynamic_index_in_dim(total, s, keepdims=False)
+            line_cost = lax.dynamic_index_in_dim(cost, s, axis=1, keepdims=False)
+            partial = lax.dynamic_index_in_dim(total, s, axis=1, keepdims=False)
             new = []
             for k, shift in enumerate(shifts):
                 p1, p2 = (lax.dynamic_index_in_dim(m, s, keepdims=False) for m in pens[shift])
@@ -202,9 +206,9 @@ def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total:
                                   line_cost, p1, p2)
                 new.append(line)
                 partial = partial + line
-            return tuple(new), lax.dynamic_update_index_in_dim(total, partial, s, axis=0)
+            return tuple(new), lax.dynamic_update_index_in_dim(total, partial, s, axis=1)
 
-        start = tuple(jnp.zeros_like(cost[0]) for _ in shifts)
+        start = tuple(jnp.zeros_like(cost[:, 0]) for _ in shifts)
         return lax.fori_loop(0, steps, step, (start, total))[1]
 
     return run(run(total, False), True)
@@ -248,7 +252,7 @@ def semi_global_sums(
     segment_factor=1.0,
     cost_bound=None,
 ) -> PathSums:
-    """:func:`semi_global` as the scans leave it: the sums rows first, int16 with ``cost_bound``.
+    """:func:`semi_global` as the scans leave it: int16 sums with ``cost_bound``, unconverted.
 
     :func:`as_volume` of the result is the float32 (D, H, W) volume; :func:`sum_planes` reads
     planes of it without writing that volume.
@@ -281,15 +285,15 @@ def semi_global_sums(
     Returns
     -------
     PathSums
-        ``sums`` (H, D, W), int16 with ``cost_bound``, else float32.
+        ``sums`` (D, H, W), int16 with ``cost_bound``, else float32.
 
     Examples
     --------
     >>> import jax.numpy as jnp
     >>> cost = jnp.ones((3, 4, 5)).at[1].set(0.0)
     >>> s = semi_global_sums(cost, jnp.zeros((4, 5, 1)), p1=0.1, p2=0.5, paths=4, cost_bound=1.0)
-    >>> s.sums.shape, s.sums.dtype, int(s.sums.argmin(axis=1).max())
-    ((4, 3, 5), dtype('int16'), 1)
+    >>> s.sums.shape, s.sums.dtype, int(s.sums.argmin(axis=0).max())
+    ((3, 4, 5), dtype('int16'), 1)
     """
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
@@ -314,22 +318,19 @@ def semi_global_sums(
             maps = tuple(_quantise(m, scale) for m in maps)
         return tuple(m.T if transpose else m for m in maps)
 
-    # Along rows (axis H): vertical and diagonal paths, carried as (D, W) lines; the transpose
-    # to (H, D, W) moves whole rows, cheaply.
+    # Vertical and diagonal paths along H on the volume as it is, (D, N = W) lines; the
+    # horizontal ones along W on its planes transposed, (D, W, H), (D, N = H) lines.
     shifts = (0,) if paths == 4 else (0, 1, -1)
     pens = {}
     for shift in shifts:
         pens[(True, shift)] = penalties((1, shift), False)
         pens[(False, shift)] = penalties((-1, -shift), False)
-    # The horizontal paths first, on the volume as (W, D, H) lines, into a zero sum; then the
-    # vertical and diagonal ones on (H, D, W) lines (the transpose moves whole rows, cheaply),
-    # into that sum transposed. Both inputs are made together, so the float32 volume is
-    # released before the loops run.
-    rows, columns = lax.optimization_barrier(
-        (jnp.transpose(work, (1, 0, 2)), jnp.transpose(work, (2, 0, 1))))
     pens_h = {(True, 0): penalties((0, 1), True), (False, 0): penalties((0, -1), True)}
+    # The horizontal paths first, into a zero sum, then the others into that sum transposed
+    # back. The transposed copy is made before the loops, so the float32 volume is released.
+    work, columns = lax.optimization_barrier((work, jnp.transpose(work, (0, 2, 1))))
     total = _scan_axis(columns, pens_h, (0,), jnp.zeros_like(columns))
-    total = _scan_axis(rows, pens, shifts, jnp.transpose(total, (2, 1, 0)))
+    total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)))
     return PathSums(total, scale)
 
 
