@@ -297,9 +297,9 @@ PRESETS: dict[str, Preset] = {
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image "
                    "(coarse-to-fine): about 4x faster, less precise below 2 pixels"),
-    "finest": Preset({**_SGM, "fill": "wmedian", "sgm_paths": 8, "aggregation_iterations": 2},
-                     "accurate with 8 paths, 2 side-window passes and the guided weighted-median "
-                     "fill of the rejected pixels: the most accurate, about 2x accurate's time"),
+    "finest": Preset({**_ACCURATE, "fill": "wmedian", "sgm_paths": 8},
+                     "accurate with 8 paths and the guided weighted-median fill of the rejected "
+                     "pixels: the most accurate, about 2x accurate's time"),
 }
 """Preset name -> :class:`Preset`."""
 

@@ -78,16 +78,12 @@ def sum_planes(path_sums: PathSums, disparities) -> list[jax.Array]:
     else:
         block = jnp.take(sums, disparities, axis=0)
         planes = [block[k] for k in range(block.shape[0])]
-    if path_sums.scale is None:
-        return planes
-    return [plane.astype(jnp.float32) / path_sums.scale for plane in planes]
+    return [_dequantise(plane, path_sums.scale) for plane in planes]
 
 
 def as_volume(cost) -> jax.Array:
     """The float32 (D, H, W) cost volume of a :class:`PathSums` (an array is returned as is)."""
-    if not isinstance(cost, PathSums):
-        return cost
-    return cost.sums if cost.scale is None else cost.sums.astype(jnp.float32) / cost.scale
+    return cost if not isinstance(cost, PathSums) else _dequantise(cost.sums, cost.scale)
 
 
 def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
@@ -337,6 +333,12 @@ def semi_global_sums(
 def _quantise(values: jax.Array, scale) -> jax.Array:
     """``round(values * scale)`` as int16 (the caller keeps the result within its range)."""
     return jnp.round(values * scale).astype(jnp.int16)
+
+
+def _dequantise(values: jax.Array, scale) -> jax.Array:
+    """Cost units of ``values`` quantised by :func:`_quantise` (float32 as is when ``scale`` is
+    None)."""
+    return values if scale is None else values.astype(jnp.float32) / scale
 
 
 def half_resolution_semi_global(
