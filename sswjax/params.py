@@ -24,6 +24,7 @@ import jax
 from sswjax.registry import AGGREGATORS, DEFAULT_PRESET, FILLS, OPTIMIZERS, PREPROCESSORS, PRESETS
 from sswjax.stages.aggregation import WINDOW_SELECTIONS
 from sswjax.stages.fill import SOURCES as FILL_SOURCES
+from sswjax.stages.refinement import MEDIANS as FILL_MEDIANS
 from sswjax.stages.sgm import PATH_COUNTS, SGM_DTYPES
 
 
@@ -55,7 +56,12 @@ class StaticParams(NamedTuple):
     lr_check : bool
         Left-right consistency check and filling of the pixels it rejects.
     fill_radius : int
-        Radius of the median over filled pixels (Eq. 9).
+        Radius of the median over filled pixels (Eq. 9): at most 5 with ``fill_median="square"``,
+        15 with ``"separable"``.
+    fill_median : str
+        ``"square"``: the exact median of the ``(2r+1)^2`` window; ``"separable"``: the median of
+        its column medians, about 10x cheaper
+        (:data:`sswjax.stages.refinement.MEDIANS`).
     refine_radius : int
         Radius of the side-window median applied to the disparity map (0 disables it).
     refine_iterations : int
@@ -125,6 +131,7 @@ class StaticParams(NamedTuple):
     fill: str = "background"
     fill_weight_radius: int = 9
     fill_source: str = "filled"
+    fill_median: str = "square"
     preprocess: str = "none"
     lcn_radius: int = 7
     strip_rows: int = 0
@@ -253,8 +260,9 @@ _INT_FIELDS = {
     "aggregation_iterations": (0, 20),
     # The medians run a sorting network over every window value: kept at <= 128 inputs (the
     # (2r + 1)^2 square of the fill, the (r + 1)(2r + 1) side windows of the refinement), as a
-    # 512-input network took over 20 GB to compile.
-    "fill_radius": (0, 5),
+    # 512-input network took over 20 GB to compile. The separable fill median's networks have
+    # 2r + 1 inputs (the square's bound is _check_combination's).
+    "fill_radius": (0, 15),
     "refine_radius": (0, 7),
     "refine_iterations": (0, 20),
     "disparity_chunk": (0, 100_000),
@@ -269,7 +277,8 @@ _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
                   "optimizer": OPTIMIZERS, "sgm_paths": PATH_COUNTS, "sgm_dtype": SGM_DTYPES,
                   "fill": FILLS,
-                  "preprocess": PREPROCESSORS, "fill_source": FILL_SOURCES}
+                  "preprocess": PREPROCESSORS, "fill_source": FILL_SOURCES,
+                  "fill_median": FILL_MEDIANS}
 _UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support", "fill_quantile")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",
                     "plane_inlier_scale", "lcn_eps", "fill_eps", "fill_quantile")
@@ -307,6 +316,16 @@ def _check_value(name: str, value) -> Any:
     return value
 
 
+_SQUARE_FILL_RADIUS = 5  # a (2r + 1)^2 <= 128-input network, as above
+
+
+def _check_combination(static: StaticParams) -> None:
+    """Rules between static fields: the square fill median's radius bound."""
+    if static.fill_median == "square" and static.fill_radius > _SQUARE_FILL_RADIUS:
+        raise ValueError(f"parameter fill_radius must be in [0, {_SQUARE_FILL_RADIUS}] with "
+                         f"fill_median 'square', got {static.fill_radius}")
+
+
 def check_params(params) -> Params:
     """Validate a ``Params`` value given to the Python API; return it unchanged.
 
@@ -329,6 +348,7 @@ def check_params(params) -> Params:
     for name, value in params.static._asdict().items():
         if name in _INT_FIELDS or name in _BOOL_FIELDS or name in _CHOICE_FIELDS:
             _check_value(name, value)
+    _check_combination(params.static)
     for name, value in params.dynamic._asdict().items():
         if isinstance(value, jax.core.Tracer):
             continue
@@ -365,7 +385,9 @@ def params_from_dict(data: Mapping) -> Params:
             flat[key] = value
         else:
             raise ValueError(f"unknown parameter {key!r}")
-    return Params().replace(**{name: _check_value(name, value) for name, value in flat.items()})
+    params = Params().replace(**{name: _check_value(name, value) for name, value in flat.items()})
+    _check_combination(params.static)
+    return params
 
 
 def preset(name: str) -> Params:

@@ -210,11 +210,13 @@ class Fill(NamedTuple):
 
 
 def _background_fill(disparity, valid, *, labels, num_segments, params):
-    return fill_invalid(disparity, valid, radius=params.static.fill_radius)
+    return fill_invalid(disparity, valid, radius=params.static.fill_radius,
+                        median=params.static.fill_median)
 
 
 def _left_band_fill(disparity, valid, *, labels, num_segments, params):
-    return fill_invalid(disparity, valid, radius=params.static.fill_radius, left_band=True)
+    return fill_invalid(disparity, valid, radius=params.static.fill_radius, left_band=True,
+                        median=params.static.fill_median)
 
 
 def _weighted_median_fill(disparity, valid, *, labels, num_segments, params, guide=None):

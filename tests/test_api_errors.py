@@ -28,6 +28,10 @@ def test_api_rejects_bad_params_and_empty_images(texture):
         (Params().replace(aggregation_radius=2.5),
          "parameter aggregation_radius must be an integer, got 2.5"),
         (Params().replace(tad_weight=np.ones(2)), "parameter tad_weight must be a scalar, got shape (2,)"),
+        (Params().replace(fill_radius=6),
+         "parameter fill_radius must be in [0, 5] with fill_median 'square', got 6"),
+        (Params().replace(fill_median="mean"),
+         "parameter fill_median must be one of ('square', 'separable'), got 'mean'"),
     ]:
         with pytest.raises(ValueError) as info:
             sswjax.match(left, left, NDISP, params=params)

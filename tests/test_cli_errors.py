@@ -128,7 +128,8 @@ def test_match_unreadable_image(files, run_cli):
         ('{"static": {"census_width": 17}}', "parameter census_width must be in [1, 15], got 17"),
         ('{"static": {"census_height": 8}}', "parameter census_height must be odd, got 8"),
         ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be in [0, 7], got -1"),
-        ('{"static": {"fill_radius": 8}}', "parameter fill_radius must be in [0, 5], got 8"),
+        ('{"static": {"fill_radius": 8}}', "parameter fill_radius must be in [0, 5] with fill_median 'square', got 8"),
+        ('{"static": {"fill_radius": 16, "fill_median": "separable"}}', "parameter fill_radius must be in [0, 15], got 16"),
         ('{"static": {"radius": 3}}', "unknown static parameter 'radius'"),
         ('{"bogus": 1}', "unknown parameter 'bogus'"),
         ('{"static": {"census_width": "9"}}', "parameter census_width must be an integer, got '9'"),
@@ -139,7 +140,8 @@ def test_match_unreadable_image(files, run_cli):
         (b"\xff\xfe{}", "cannot read parameter file {p}: 'utf-8' codec can't decode"),
     ],
     ids=["nan", "infinity", "negative-truncation", "negative-weight", "int-too-large", "even-census",
-         "negative-radius", "fill-radius-too-large", "unknown-static-key", "unknown-key", "string-for-int", "string-for-bool",
+         "negative-radius", "fill-radius-too-large", "separable-fill-radius-too-large",
+         "unknown-static-key", "unknown-key", "string-for-int", "string-for-bool",
          "null-for-number", "not-an-object", "bad-json", "not-utf8"],
 )
 def test_match_bad_params_json(files, tmp_path, run_cli, content, message):

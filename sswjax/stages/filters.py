@@ -339,6 +339,42 @@ def median_filter(x: jax.Array, *, radius: int) -> jax.Array:
     return median_of_stack([_shifted(padded, r, dy, dx) for dy in offsets for dx in offsets])
 
 
+def separable_median_filter(x: jax.Array, *, radius: int) -> jax.Array:
+    """Separable median: the median over each row's ``2r+1`` values of the medians over columns.
+
+    Narendra, "A Separable Median Filter for Image Noise Smoothing", IEEE TPAMI 3(1), 1981: the
+    median of the ``2r + 1`` column medians of a ``(2r+1) x (2r+1)`` window, an approximation of
+    its median (:func:`median_filter`) that needs two ``2r + 1``-input sorting networks per pixel
+    instead of one ``(2r+1)^2``-input network (about 2 ms instead of 25 ms for ``r = 5`` on a
+    500 x 720 map). Like the square median, it keeps straight edges and removes structures
+    thinner than ``r + 1`` pixels in both directions; it differs from it near corners.
+
+    Parameters
+    ----------
+    x : float32 (..., H, W)
+    radius : int >= 1
+        Window radius; edge-replicated borders.
+
+    Returns
+    -------
+    float32, shape of ``x``
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> d = jnp.zeros((5, 6)).at[:, 3:].set(3.0).at[2, 1].set(9.0)   # an edge and an outlier
+    >>> separable_median_filter(d, radius=1)[2].tolist()
+    [0.0, 0.0, 0.0, 3.0, 3.0, 3.0]
+    """
+    check_map("x", x, radius)
+    r = radius
+    height, width = x.shape[-2:]
+    rows = jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [(r, r), (0, 0)], mode="edge")
+    columns = median_of_stack([rows[..., dy:dy + height, :] for dy in range(2 * r + 1)])
+    padded = jnp.pad(columns, [(0, 0)] * (x.ndim - 2) + [(0, 0), (r, r)], mode="edge")
+    return median_of_stack([padded[..., dx:dx + width] for dx in range(2 * r + 1)])
+
+
 _EXTENT_OFFSETS = {
     "before": lambda r: range(-r, 1),
     "after": lambda r: range(0, r + 1),

@@ -18,7 +18,11 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_rank, check_same_shape
-from sswjax.stages.filters import median_filter
+from sswjax.stages.filters import median_filter, separable_median_filter
+
+MEDIANS = {"square": median_filter, "separable": separable_median_filter}
+"""The median of :func:`fill_invalid`: over the ``(2r+1)^2`` square (exact), or the separable
+approximation (medians of column medians, about a tenth of the time at ``r = 5``)."""
 
 
 def right_cost_volume(cost: jax.Array, *, disparities: jax.Array | None = None) -> jax.Array:
@@ -149,8 +153,8 @@ def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool =
     return jnp.where(valid, disparity, fill)
 
 
-def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_band: bool = False
-                 ) -> jax.Array:
+def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_band: bool = False,
+                 median: str = "square") -> jax.Array:
     """Eq. (9) as we read it: background fill, then a median over the filled pixels only.
 
     Parameters
@@ -161,12 +165,25 @@ def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_ba
         Median window radius; 0 keeps the background fill.
     left_band : bool
         See :func:`fill_background`.
+    median : {"square", "separable"}
+        A key of :data:`MEDIANS`: the median over the ``(2r+1)^2`` window, or the separable
+        approximation (the median of its column medians).
 
     Returns
     -------
     float32 (H, W), dense; equal to ``disparity`` where ``valid``.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> d = jnp.array([[1., 1., 1., 0., 5., 5.]] * 3)
+    >>> v = jnp.array([[True, True, True, False, True, True]] * 3)
+    >>> fill_invalid(d, v, radius=1, median="separable")[1].tolist()
+    [1.0, 1.0, 1.0, 1.0, 5.0, 5.0]
     """
+    if median not in MEDIANS:
+        raise ValueError(f"median must be one of {tuple(MEDIANS)}, got {median!r}")
     filled = fill_background(disparity, valid, left_band=left_band)
     if radius == 0:
         return filled
-    return jnp.where(valid, filled, median_filter(filled, radius=radius))
+    return jnp.where(valid, filled, MEDIANS[median](filled, radius=radius))

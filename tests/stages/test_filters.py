@@ -11,6 +11,7 @@ from sswjax.stages.filters import (
     median_filter,
     median_of_stack,
     select_side_window_mean,
+    separable_median_filter,
     side_window_box_filter,
     side_window_index,
     side_window_means,
@@ -308,6 +309,35 @@ def test_median_filter(radius, rng):
     x[1] = rng.random((9, 11))
     ours = np.asarray(median_filter(jnp.asarray(x), radius=radius))
     np.testing.assert_array_equal(ours, median_filter_reference(x, radius).astype(np.float32))
+
+
+def separable_median_reference(x, r):
+    """Median over each row window of the medians over each column window, edge-replicated."""
+    x = np.asarray(x, np.float64)
+    out = np.zeros_like(x)
+    for lead in np.ndindex(*x.shape[:-2]):
+        padded = edge_pad(x[lead], r)
+        height, width = x.shape[-2:]
+        columns = np.array([[np.median(padded[y:y + 2 * r + 1, xx]) for xx in range(width + 2 * r)]
+                            for y in range(height)])
+        out[lead] = [[np.median(columns[y, xx:xx + 2 * r + 1]) for xx in range(width)]
+                     for y in range(height)]
+    return out
+
+
+@pytest.mark.parametrize("radius", [1, 2, 4])
+def test_separable_median_filter(radius, rng):
+    x = rng.integers(0, 5, size=(2, 9, 11)).astype(np.float32)
+    x[1] = rng.random((9, 11))
+    ours = jitted(separable_median_filter, x, radius=radius)
+    np.testing.assert_array_equal(ours, separable_median_reference(x, radius).astype(np.float32))
+
+
+def test_separable_median_differs_from_the_square_one(rng):
+    # Not the same filter: the median of column medians is not the window's median in general.
+    x = rng.random((12, 12)).astype(np.float32)
+    assert not np.array_equal(jitted(separable_median_filter, x, radius=2),
+                              jitted(median_filter, x, radius=2))
 
 
 @pytest.mark.parametrize("iterations", [1, 2])

@@ -274,14 +274,15 @@ def test_left_band_fill_keeps_the_surface_that_has_no_match():
     assert fill_background(d, v, left_band=True).tolist() == [[0, 5, 5, 5, 5, 5, 1, 1, 1]]
 
 
+@pytest.mark.parametrize("median", ["square", "separable"])
 @pytest.mark.parametrize("radius", [0, 1, 2])
-def test_fill_invalid(radius):
+def test_fill_invalid(radius, median):
     rng = np.random.default_rng(6 + radius)
     d = (rng.random((8, 13)) * 10).astype(np.float32)
     v = rng.random((8, 13)) < 0.5
     v[3] = False  # a row with no valid pixel
     d[~v & (rng.random((8, 13)) < 0.3)] = np.nan  # garbage under invalid pixels
-    ours = np.asarray(fill_invalid(jnp.asarray(d), jnp.asarray(v), radius=radius))
+    ours = np.asarray(fill_invalid(jnp.asarray(d), jnp.asarray(v), radius=radius, median=median))
     assert ours.shape == d.shape and ours.dtype == np.float32
     assert np.isfinite(ours).all()
     np.testing.assert_array_equal(ours[v], d[v])  # valid pixels are untouched
@@ -293,5 +294,13 @@ def test_fill_invalid(radius):
         padded = np.pad(filled, radius, mode="edge")
         size = 2 * radius + 1
         for y, x in zip(*np.nonzero(~v)):
-            expected = np.median(padded[y : y + size, x : x + size])
+            window = padded[y : y + size, x : x + size]
+            # separable: the median of the window's column medians
+            expected = np.median(window) if median == "square" else np.median(np.median(window, axis=0))
             assert ours[y, x] == pytest.approx(expected, abs=1e-6), (y, x)
+
+
+def test_fill_invalid_rejects_an_unknown_median():
+    d = jnp.zeros((4, 4))
+    with pytest.raises(ValueError, match="median must be one of"):
+        fill_invalid(d, d > 0, radius=1, median="mean")
