@@ -58,7 +58,8 @@ def test_fast_on_motorcycle_stays_within_its_measured_error():
     d = sswjax.match(left, right, ndisp=70, params=sswjax.preset("fast"))
     known = np.isfinite(ground_truth)
     bad2 = (np.abs(d[known] - ground_truth[known]) > 2.0).mean()
-    # measured: bad 2.0 = 7.9 % (the same method at full resolution: 6.0 %)
+    # measured: bad 2.0 = 8.1 % (the same method without the halving, `coarse_levels` 0: 6.1 %;
+    # `accurate` 6.3 %)
     assert bad2 <= 0.095, bad2
 
 
