@@ -25,7 +25,7 @@ from sswjax.stages.pyramid import halve_image
 from sswjax.stages.refinement import left_right_distance
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
-from sswjax.stages.sgm import PathSums, sum_planes
+from sswjax.stages.sgm import PathSums, quantise_cost, sum_planes
 from sswjax.stages.upsampling import double_nearest, upsample_disparity
 
 
@@ -219,15 +219,19 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
 _OUT_OF_RANGE_COST = 1e4
 
 
-def _aggregated_volume(features, left, labels, num_segments, ndisp, params) -> jax.Array:
-    """The whole aggregated volume float32 (ndisp, H, W), built ``disparity_chunk`` slices at
-    a time (a ``lax.scan`` whose outputs are the blocks) or at once when it is 0."""
+def _aggregated_volume(features, left, labels, num_segments, ndisp, params, store=None
+                       ) -> jax.Array:
+    """The whole aggregated volume (ndisp, H, W), built ``disparity_chunk`` slices at a time (a
+    ``lax.scan`` whose outputs are the blocks) or at once when it is 0: float32, or as
+    ``store`` (an elementwise function of the float32 cost) stores each block."""
     chunk = params.static.disparity_chunk
+    store = (lambda block: block) if store is None else store
     if chunk == 0 or chunk >= ndisp:
-        return _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
+        return store(_aggregate_slices(features, left, labels, num_segments, 0, ndisp, params))
 
     def step(carry, first):
-        return carry, _aggregate_slices(features, left, labels, num_segments, first, chunk, params)
+        return carry, store(_aggregate_slices(features, left, labels, num_segments, first,
+                                              chunk, params))
 
     _, blocks = jax.lax.scan(step, None, jnp.arange(0, ndisp, chunk))
     return blocks.reshape((-1, *blocks.shape[2:]))[:ndisp]
@@ -370,11 +374,16 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
     chunk = params.static.disparity_chunk
     optimizer = OPTIMIZERS[params.static.optimizer]
     if optimizer.fn is not None:
-        cost = _aggregated_volume(features, left, labels, num_segments, ndisp, params)
+        # The optimiser may take the cost quantised: each block is stored so as it is built.
+        quant = None if optimizer.storage is None else optimizer.storage(params)
+        store = None if quant is None else functools.partial(quantise_cost, quant=quant)
+        cost = _aggregated_volume(features, left, labels, num_segments, ndisp, params, store)
         if valid_ndisp is not None:
             # Disparities beyond the traced range take a high finite cost: the paths must not
             # pass through them, and +inf would turn the recursion's differences into NaN.
-            cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost, _OUT_OF_RANGE_COST)
+            high = jnp.float32(_OUT_OF_RANGE_COST)
+            cost = jnp.where(jnp.arange(ndisp)[:, None, None] < limit, cost,
+                             high if store is None else store(high))
         with jax.named_scope(STAGES[3]):
             optimised = optimizer.fn(cost, left, labels=labels if num_segments else None,
                                      params=params)

@@ -44,7 +44,7 @@ from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
 from sswjax.stages.fill import weighted_median_fill
 from sswjax.stages.refinement import fill_invalid
-from sswjax.stages.sgm import half_resolution_semi_global, semi_global_sums
+from sswjax.stages.sgm import half_resolution_semi_global, quantisation, semi_global_sums
 from sswjax.stages.baselines import (
     bilateral_filter,
     box_filter,
@@ -146,16 +146,22 @@ class Optimizer(NamedTuple):
     subpixel_on_input : bool
         Whether the sub-pixel parabola fits the aggregated cost the optimiser was given rather
         than its output (whose interpolated coarse term would bias it).
+    storage : callable or None
+        ``storage(params) -> Quantisation | None``: how ``fn`` takes the aggregated cost
+        (:func:`~sswjax.stages.sgm.quantise_cost` of that quantisation, which the pipeline
+        applies slice by slice as the volume is built, so the float32 volume is never
+        written); None or a None result: float32.
     """
 
     fn: Callable[..., Any] | None
     summary: str
     uses_segments: bool = False
     subpixel_on_input: bool = False
+    storage: Callable[..., Any] | None = None
 
 
 def _cost_bound(params):
-    """The largest aggregated cost of a matching pixel for ``sgm_dtype="int16"`` (else None).
+    """The largest aggregated cost of a matching pixel for a quantised ``sgm_dtype`` (else None).
 
     Each term of Eq. 5 is normalised to [0, 1], the border cost is the weights' sum, and the
     aggregators average: the weights' sum bounds the cost, times ``1 + lambda`` with the segment
@@ -169,12 +175,29 @@ def _cost_bound(params):
     return bound * (1.0 + abs(dynamic.segment_weight)) if static.n_segments else bound
 
 
+def _quantisation(params):
+    """``cost_bound`` and ``cost_levels`` of the semi-global functions for ``Params.sgm_dtype``."""
+    levels = 255 if params.static.sgm_dtype == "uint8" else None
+    return {"cost_bound": _cost_bound(params), "cost_levels": levels}
+
+
+def _storage(params):
+    """The :class:`~sswjax.stages.sgm.Quantisation` of the aggregated cost for the paths of
+    ``params`` (None with ``sgm_dtype="float32"``)."""
+    options = _quantisation(params)
+    if options["cost_bound"] is None:
+        return None
+    dynamic = params.dynamic
+    return quantisation(paths=params.static.sgm_paths, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
+                        **options)
+
+
 def _semi_global(cost, guide, *, labels, params):
     static, dynamic = params.static, params.dynamic
     return semi_global_sums(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
                             sigma=dynamic.sgm_sigma, paths=static.sgm_paths, labels=labels,
                             segment_factor=dynamic.sgm_segment_factor,
-                            cost_bound=_cost_bound(params))
+                            **_quantisation(params))
 
 
 def _half_resolution_semi_global(cost, guide, *, labels, params):
@@ -182,14 +205,14 @@ def _half_resolution_semi_global(cost, guide, *, labels, params):
     return half_resolution_semi_global(cost, guide, p1=dynamic.sgm_p1, p2=dynamic.sgm_p2,
                                        sigma=dynamic.sgm_sigma, paths=static.sgm_paths,
                                        detail_weight=dynamic.sgm_detail_weight,
-                                       cost_bound=_cost_bound(params))
+                                       **_quantisation(params))
 
 
 OPTIMIZERS: dict[str, Optimizer] = {
     "none": Optimizer(None, "winner-takes-all directly on the aggregated cost (the paper, Eq. 8)"),
     "sgm": Optimizer(_semi_global, "semi-global optimisation of the aggregated cost, 4 or 8 "
                      "paths, guide-adaptive P2, reduced across superpixels (Hirschmuller 2008)",
-                     uses_segments=True),
+                     uses_segments=True, storage=_storage),
     "sgm-half": Optimizer(_half_resolution_semi_global,
                           "semi-global optimisation of the volume halved in space and disparity, "
                           "doubled back onto the aggregated cost (an eighth of the paths' work)",
@@ -283,8 +306,11 @@ class Preset(NamedTuple):
     summary: str
 
 
+# The semi-global presets store the aggregated cost in uint8 for the int16 paths (a quarter of
+# float32's bytes through the memory-bound scans; the same errors within 0.03 on every set, see
+# the README's design notes).
 _SGM = {"optimizer": "sgm", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0, "fill_radius": 7,
-        "fill_median": "separable", "fill": "left-band"}
+        "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8"}
 # accurate: two side-window passes and a 19 x 19 separable fill median instead of _SGM's three
 # and 15 x 15 (chosen by the static grid of the README's "Beyond the paper"); fast keeps _SGM's.
 _ACCURATE = {**_SGM, "aggregation_iterations": 2, "fill_radius": 9}

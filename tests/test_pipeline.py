@@ -56,6 +56,25 @@ def test_constant_shift_recovered_with_default_params(pair):
     assert abs(float(np.median(inner)) - SHIFT) <= 1e-3
 
 
+def test_cost_stored_as_built_equals_the_volume_quantised_after(pair, monkeypatch):
+    # The pipeline quantises each aggregated block as the scan builds it (the float32 volume is
+    # never written); the map must be that of quantising the whole volume inside the paths,
+    # with and without the out-of-range disparities of a traced range.
+    from sswjax import registry
+
+    left, right = map(jnp.asarray, pair)
+    params = sswjax.preset("accurate").replace(sgm_dtype="uint8")
+    run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
+    stored = [run(left, right, None), run(left, right, NDISP - 3)]
+    monkeypatch.setitem(registry.OPTIMIZERS, "sgm",
+                        registry.OPTIMIZERS["sgm"]._replace(storage=None))
+    jax.clear_caches()                  # ssw_disparity's trace would otherwise be reused
+    run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
+    after = [run(left, right, None), run(left, right, NDISP - 3)]
+    for a, b in zip(stored, after):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_vmap_equals_separate_calls():
     params = Params()
     pairs = [shifted_pair(1, 5), shifted_pair(2, 9)]

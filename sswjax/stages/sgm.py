@@ -40,14 +40,17 @@ from jax import lax
 from sswjax._checks import check_floating, check_rank
 from sswjax.stages.pyramid import double_volume, halve_image, halve_volume
 
-__all__ = ["PATH_COUNTS", "SGM_DTYPES", "PathSums", "as_volume", "half_resolution_semi_global",
-           "path_penalties", "semi_global", "semi_global_sums", "sum_planes"]
+__all__ = ["PATH_COUNTS", "SGM_DTYPES", "PathSums", "Quantisation", "as_volume",
+           "half_resolution_semi_global", "path_penalties", "quantisation", "quantise_cost",
+           "semi_global", "semi_global_sums", "sum_planes"]
 
 PATH_COUNTS = (4, 8)
 """Supported numbers of paths."""
 
-SGM_DTYPES = ("int16", "float32")
-"""What the paths compute in (``Params.sgm_dtype``): see ``cost_bound`` of :func:`semi_global`."""
+SGM_DTYPES = ("int16", "uint8", "float32")
+"""What the paths read and compute in (``Params.sgm_dtype``): ``"int16"`` and ``"uint8"`` the
+cost quantised (``cost_bound`` and ``cost_levels`` of :func:`semi_global_sums`), int16 paths;
+``"float32"`` exact."""
 
 
 class PathSums(NamedTuple):
@@ -148,13 +151,16 @@ def path_penalties(
     return p1_map, p2_map
 
 
-def _path_step(previous, cost, p1, p2):
+def _path_step(previous, cost, p1, p2, levels_step=None):
     """One step of Eq. 13 for a line of pixels: ``previous``, ``cost`` (D, N); ``p1``, ``p2`` (N,).
 
     Float32 or int16 alike: the first and last disparities' missing neighbour is the disparity
     itself (edge-replicated), which ``+ p1`` can never make the minimum, so no sentinel such as
-    ``inf`` (which int16 has not, and whose sum would overflow) is needed.
+    ``inf`` (which int16 has not, and whose sum would overflow) is needed. A uint8 ``cost`` is
+    widened to ``previous``'s dtype and multiplied by ``levels_step`` (int16 steps per level).
     """
+    if levels_step is not None:
+        cost = cost.astype(previous.dtype) * levels_step
     lowest = previous.min(axis=0)
     neighbours = jnp.minimum(
         jnp.concatenate([previous[1:], previous[-1:]]),
@@ -174,9 +180,12 @@ def _shift_line(line: jax.Array, dx: int) -> jax.Array:
     return jnp.concatenate([line[:, 1:], zeros], axis=1)
 
 
-def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total: jax.Array
-               ) -> jax.Array:
+def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total: jax.Array | None,
+               *, levels_step=None, dtype=None) -> jax.Array:
     """``total`` plus the paths along axis 1 of ``cost`` (D, S, N), forward then backward.
+
+    ``total`` None: the sum of these paths alone, in ``dtype`` (the forward loop writes its
+    lines without reading a zero sum). ``levels_step``: see :func:`_path_step`.
 
     ``shifts`` are the per-step shifts along N of the paths (0 straight, +-1 diagonal);
     ``penalties[(forward, shift)]`` are their (P1, P2) maps, (S, N) each. A line is the (D, N)
@@ -194,19 +203,23 @@ def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total:
             lines, total = state
             s = steps - 1 - i if reverse else i
             line_cost = lax.dynamic_index_in_dim(cost, s, axis=1, keepdims=False)
-            partial = lax.dynamic_index_in_dim(total, s, axis=1, keepdims=False)
+            partial = (None if fresh and not reverse
+                       else lax.dynamic_index_in_dim(total, s, axis=1, keepdims=False))
             new = []
             for k, shift in enumerate(shifts):
                 p1, p2 = (lax.dynamic_index_in_dim(m, s, keepdims=False) for m in pens[shift])
                 line = _path_step(_shift_line(lines[k], -shift if reverse else shift),
-                                  line_cost, p1, p2)
+                                  line_cost, p1, p2, levels_step)
                 new.append(line)
-                partial = partial + line
+                partial = line if partial is None else partial + line
             return tuple(new), lax.dynamic_update_index_in_dim(total, partial, s, axis=1)
 
-        start = tuple(jnp.zeros_like(cost[:, 0]) for _ in shifts)
+        start = tuple(jnp.zeros(cost[:, 0].shape, total.dtype) for _ in shifts)
         return lax.fori_loop(0, steps, step, (start, total))[1]
 
+    fresh = total is None
+    if fresh:
+        total = jnp.zeros(cost.shape, cost.dtype if dtype is None else dtype)
     return run(run(total, False), True)
 
 
@@ -247,6 +260,7 @@ def semi_global_sums(
     labels: jax.Array | None = None,
     segment_factor=1.0,
     cost_bound=None,
+    cost_levels=None,
 ) -> PathSums:
     """:func:`semi_global` as the scans leave it: int16 sums with ``cost_bound``, unconverted.
 
@@ -256,6 +270,8 @@ def semi_global_sums(
     Parameters
     ----------
     cost : float32 (D, H, W)
+        Or, with ``cost_bound``, the volume :func:`quantise_cost` stored with the
+        :func:`quantisation` of the same options (int16, or uint8 with ``cost_levels``).
     guide : float32 (H, W, C)
         Left image in [0, 1], for the adaptive P2.
     p1, p2 : float or scalar array, >= 0
@@ -272,11 +288,14 @@ def semi_global_sums(
         read, carry and write is half the bytes, and XLA CPU runs the int16 recursion 3x faster
         (the scans are bound by memory traffic). Costs are clipped to ``[0, 2 * cost_bound]``
         (``cost_bound`` is the largest cost a matching pixel can have: values up to twice it,
-        such as out-of-range disparities, stay above every real cost) and quantised with the
-        largest scale at which no sum of ``paths`` paths can overflow, ``(2 ** 15 - 1 - 2 *
-        paths) / (paths * (2 * cost_bound + max(p1, p2)))`` steps per cost unit (about 3000
-        for 4 paths and a bound of 1); ``scale`` of the result converts back to cost units. Not
-        differentiable: leave it ``None`` (float32) for gradients.
+        such as out-of-range disparities, stay above every real cost) and stored as
+        :func:`quantisation` says (about 3000 int16 steps per cost unit for 4 paths and a bound
+        of 1); ``scale`` of the result converts back to cost units. Not differentiable: leave
+        it ``None`` (float32) for gradients.
+    cost_levels : {None, 255}
+        With ``cost_bound``: None stores the cost the scans read in int16; 255 stores it in
+        uint8 (the paths and sums stay int16): the volume that the transpose and the four
+        scans read is half the bytes again.
 
     Returns
     -------
@@ -292,7 +311,6 @@ def semi_global_sums(
     ((3, 4, 5), dtype('int16'), 1)
     """
     check_rank("cost", cost, 3)
-    check_floating("cost", cost)
     check_rank("guide", guide, 3)
     if tuple(guide.shape[:2]) != tuple(cost.shape[1:]):
         raise ValueError(f"guide size {tuple(guide.shape[:2])} differs from cost size "
@@ -301,11 +319,21 @@ def semi_global_sums(
         raise ValueError(f"paths must be one of {PATH_COUNTS}, got {paths!r}")
 
     if cost_bound is None:
-        scale, work = None, cost
+        check_floating("cost", cost)
+        quant, work = None, cost
     else:
-        cap = 2.0 * cost_bound
-        scale = (jnp.iinfo(jnp.int16).max - 2 * paths) / (paths * (cap + jnp.maximum(p1, p2)))
-        work = _quantise(jnp.clip(cost, 0.0, cap), scale)
+        quant = quantisation(cost_bound=cost_bound, paths=paths, p1=p1, p2=p2,
+                             cost_levels=cost_levels)
+        stored = jnp.dtype(jnp.int16 if cost_levels is None else jnp.uint8)
+        if jnp.issubdtype(cost.dtype, jnp.floating):
+            work = quantise_cost(cost, quant)
+        elif cost.dtype == stored:
+            work = cost
+        else:
+            raise ValueError(f"cost must be float32, or {stored} as quantise_cost stores it "
+                             f"with these options, got {cost.dtype}")
+    scale = None if quant is None else quant.scale
+    levels_step = None if quant is None else quant.step
 
     def penalties(direction, transpose):
         maps = path_penalties(guide, direction, p1=p1, p2=p2, sigma=sigma, labels=labels,
@@ -325,9 +353,76 @@ def semi_global_sums(
     # The horizontal paths first, into a zero sum, then the others into that sum transposed
     # back. The transposed copy is made before the loops, so the float32 volume is released.
     work, columns = lax.optimization_barrier((work, jnp.transpose(work, (0, 2, 1))))
-    total = _scan_axis(columns, pens_h, (0,), jnp.zeros_like(columns))
-    total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)))
+    sum_dtype = jnp.float32 if scale is None else jnp.int16
+    total = _scan_axis(columns, pens_h, (0,), None, levels_step=levels_step, dtype=sum_dtype)
+    total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
+                       levels_step=levels_step)
     return PathSums(total, scale)
+
+
+class Quantisation(NamedTuple):
+    """How a cost volume is stored for the int16 paths (:func:`quantisation`).
+
+    Attributes
+    ----------
+    scale : float32 scalar
+        int16 steps of the paths per cost unit.
+    step : int16 scalar or None
+        int16 steps per stored level (uint8 storage); None: stored in int16 at ``scale``.
+    cap : float scalar
+        The largest cost stored, ``2 * cost_bound``; larger costs are clipped to it.
+    levels : int or None
+        Stored levels above 0 (uint8 storage), or None.
+    """
+
+    scale: Any
+    step: Any
+    cap: Any
+    levels: int | None
+
+
+def quantisation(*, cost_bound, paths: int, p1, p2, cost_levels=None) -> Quantisation:
+    """The storage of a cost volume for :func:`semi_global_sums` with these options.
+
+    The scale is the largest at which no sum of ``paths`` paths can overflow int16,
+    ``(2 ** 15 - 1 - 2 * paths) / (paths * (2 * cost_bound + max(p1, p2)))`` steps per cost
+    unit. With ``cost_levels`` (255) the cost is stored in uint8, ``[0, 2 * cost_bound]`` in
+    that many levels, and a level is the largest whole number of int16 steps that keeps that
+    bound (the scale is rounded down to it).
+
+    Examples
+    --------
+    >>> q = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.8, cost_levels=255)
+    >>> int(q.step), round(float(q.scale), 1)
+    (22, 2805.0)
+    """
+    if cost_levels not in (None, 255):
+        raise ValueError(f"cost_levels must be None or 255, got {cost_levels!r}")
+    cap = 2.0 * cost_bound
+    scale = (jnp.iinfo(jnp.int16).max - 2 * paths) / (paths * (cap + jnp.maximum(p1, p2)))
+    if cost_levels is None:
+        return Quantisation(scale, None, cap, None)
+    step = jnp.floor(scale * cap / cost_levels).astype(jnp.int16)
+    return Quantisation(step * (cost_levels / cap), step, cap, cost_levels)
+
+
+def quantise_cost(cost: jax.Array, quant: Quantisation) -> jax.Array:
+    """A float32 cost (any shape) as :func:`semi_global_sums` stores it: clipped to
+    ``[0, quant.cap]``, int16 at ``quant.scale`` or uint8 in ``quant.levels`` levels.
+
+    Elementwise, so a volume may be stored slice by slice as it is built.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> q = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.8, cost_levels=255)
+    >>> quantise_cost(jnp.array([-1.0, 0.5, 1.0, 9.0]), q).tolist()
+    [0, 64, 128, 255]
+    """
+    clipped = jnp.clip(cost, 0.0, quant.cap)
+    if quant.levels is None:
+        return _quantise(clipped, quant.scale)
+    return jnp.round(clipped * (quant.levels / quant.cap)).astype(jnp.uint8)
 
 
 def _quantise(values: jax.Array, scale) -> jax.Array:
@@ -351,6 +446,7 @@ def half_resolution_semi_global(
     paths: int = 4,
     detail_weight=1.0,
     cost_bound=None,
+    cost_levels=None,
 ) -> jax.Array:
     """Semi-global optimisation at half resolution, added back to the full-resolution cost.
 
@@ -366,8 +462,8 @@ def half_resolution_semi_global(
     ----------
     cost : float32 (D, H, W)
     guide : float32 (H, W, C)
-    p1, p2, sigma, paths, cost_bound
-        As in :func:`semi_global` (halving averages, so the bound holds at half resolution).
+    p1, p2, sigma, paths, cost_bound, cost_levels
+        As in :func:`semi_global_sums` (halving averages, so the bound holds at half resolution).
     detail_weight : float or scalar array, >= 0
         Weight of the full-resolution cost in the sum.
 
@@ -386,5 +482,5 @@ def half_resolution_semi_global(
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
     coarse = semi_global(halve_volume(cost), halve_image(guide), p1=p1, p2=p2, sigma=sigma,
-                         paths=paths, cost_bound=cost_bound)
+                         paths=paths, cost_bound=cost_bound, cost_levels=cost_levels)
     return detail_weight * cost + double_volume(coarse, shape=cost.shape)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from sswjax.pipeline import _fold_volume
-from sswjax.stages.sgm import as_volume, path_penalties, semi_global, semi_global_sums, sum_planes
+from sswjax.stages.sgm import (as_volume, path_penalties, quantisation, quantise_cost, semi_global,
+                               semi_global_sums, sum_planes)
 
 DIRECTIONS = {4: [(0, 1), (0, -1), (1, 0), (-1, 0)],
               8: [(0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, -1), (-1, 1)]}
@@ -100,6 +101,48 @@ def test_int16_paths_cannot_overflow_at_the_bound():
         assert ours.min() >= 0
         np.testing.assert_allclose(ours, reference, atol=paths * 4 * 2.9 / 32000, rtol=0)
         np.testing.assert_array_equal(ours.argmin(axis=0), reference.argmin(axis=0))
+
+
+@pytest.mark.parametrize("paths", [4, 8])
+def test_uint8_cost_matches_the_reference_within_its_levels(paths):
+    # The cost stored in 255 levels of 2 / 255 (the paths in int16): each path is the float
+    # recursion on costs rounded to a level, so the sums differ by at most half a level per
+    # path and step of the cost's rounding carried along, plus the penalties' int16 rounding.
+    rng = np.random.default_rng(20 + paths)
+    cost = rng.random((6, 7, 9)).astype(np.float32)
+    guide = rng.random((7, 9, 3)).astype(np.float32)
+    run = jax.jit(lambda c, g: semi_global_sums(c, g, p1=0.1, p2=0.6, sigma=0.2, paths=paths,
+                                                  cost_bound=1.0, cost_levels=255))
+    sums = run(jnp.asarray(cost), jnp.asarray(guide))
+    rounded = np.round(cost * 127.5) / 127.5
+    reference = semi_global_reference(rounded, guide, 0.1, 0.6, 0.2, paths)
+    assert sums.sums.dtype == jnp.int16
+    np.testing.assert_allclose(as_volume(sums), reference, atol=paths * 4 / float(sums.scale),
+                               rtol=0)
+    int16 = semi_global(jnp.asarray(cost), jnp.asarray(guide), p1=0.1, p2=0.6, sigma=0.2,
+                        paths=paths, cost_bound=1.0)
+    assert np.abs(np.asarray(as_volume(sums)) - np.asarray(int16)).max() > 0   # it is coarser
+
+
+@pytest.mark.parametrize("cost_levels", [None, 255])
+def test_a_stored_cost_gives_the_sums_of_the_float_cost(cost_levels):
+    # The pipeline stores each aggregated block with quantise_cost as it is built: the paths
+    # on that volume must be exactly those on the float32 volume quantised inside.
+    rng = np.random.default_rng(3)
+    cost = jnp.asarray(rng.random((5, 6, 8)).astype(np.float32) * 2.5)
+    guide = jnp.asarray(rng.random((6, 8, 1)).astype(np.float32))
+    options = dict(p1=0.1, p2=0.6, paths=4, cost_bound=1.0, cost_levels=cost_levels)
+    quant = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.6, cost_levels=cost_levels)
+    stored = jnp.concatenate([quantise_cost(cost[:2], quant), quantise_cost(cost[2:], quant)])
+    assert stored.dtype == (jnp.int16 if cost_levels is None else jnp.uint8)
+    inside = semi_global_sums(cost, guide, **options)
+    outside = semi_global_sums(stored, guide, **options)
+    np.testing.assert_array_equal(outside.sums, inside.sums)
+    assert float(outside.scale) == float(inside.scale)
+    with pytest.raises(ValueError, match="quantise_cost"):
+        semi_global_sums(stored.astype(jnp.int32), guide, **options)
+    with pytest.raises(ValueError, match="cost_levels"):
+        quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.6, cost_levels=100)
 
 
 def test_path_penalties_match_reference():
