@@ -42,7 +42,8 @@ print(json.dumps({"peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1
 """
 
 # (height, width, ndisp, preset, parameter changes): Motorcycle Q, Vintage Q's size, the H and
-# full-resolution sizes, tiny sizes (the constant), chunks, strips, 8 paths, no SLIC.
+# full-resolution sizes, tiny sizes (the constant), chunks, strips, the int16 storage, 8 paths,
+# no SLIC.
 CONFIGS = [
     (64, 96, 16, "paper", {}),
     (64, 96, 16, "accurate", {}),
@@ -56,6 +57,9 @@ CONFIGS = [
     (497, 741, 70, "accurate", {}),
     (480, 722, 190, "accurate", {}),
     (497, 741, 140, "accurate", {}),
+    (497, 741, 70, "accurate", {"sgm_dtype": "int16"}),
+    (480, 722, 190, "accurate", {"sgm_dtype": "int16"}),
+    (994, 1482, 140, "accurate", {"sgm_dtype": "int16"}),
     (497, 741, 70, "accurate", {"sgm_paths": 8}),
     (497, 741, 70, "accurate", {"disparity_chunk": 0}),
     (480, 722, 190, "accurate", {"strip_rows": 160}),

@@ -24,8 +24,11 @@ its table is in the README ("Memory guard"). The terms:
 ``volume``
     ``h * W * D`` when a whole volume is aggregated at once (``disparity_chunk = 0``).
 ``sgm``
-    ``h * W * D`` with the semi-global optimiser: the aggregated volume (float32), the paths'
-    two transposed int16 inputs and their in-place int16 sum (about 10 bytes per element).
+    ``h * W * D`` with the semi-global optimiser: the aggregated volume stored in uint8 as it is
+    built, its transposed copy and the paths' in-place int16 sum (and that sum transposed).
+``sgm_wide``
+    ``h * W * D`` more when the volume is stored wider (``sgm_dtype`` ``"int16"`` or
+    ``"float32"``: the float32 volume written whole, then its two int16 copies).
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
 
@@ -61,23 +64,24 @@ class MemoryEstimateError(MemoryError):
 
 
 COEFFICIENTS: dict[str, float] = {
-    "base": 4.42e8,
-    "image": 19.8,
+    "base": 4.603e8,
+    "image": 13.7,
     "window": 0.0,
-    "slic": 246.4,
-    "blocks": 24.43,
-    "volume": 24.67,
-    "sgm": 10.09,
-    "sgm8": 0.4838,
+    "slic": 231.5,
+    "blocks": 30.35,
+    "volume": 30.89,
+    "sgm": 4.749,
+    "sgm_wide": 2.625,
+    "sgm8": 0.4593,
 }
 """Bytes per unit of each term, fitted by ``benchmarks/memory_model.py``."""
 
-COMPILE_FLOOR: dict[str, float] = {"none": 0.471e9, "sgm": 0.968e9}
+COMPILE_FLOOR: dict[str, float] = {"none": 0.496e9, "sgm": 0.453e9}
 """Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling the graph, without and
-with the semi-global optimiser (whose scans take about half a GB more to compile)."""
+with the semi-global optimiser."""
 
 MARGIN = 1.15
-"""Factor over the fitted model: the measured peaks were 0.78 to 1.05 times the model."""
+"""Factor over the fitted model: the measured peaks were 0.91 to 1.14 times the model."""
 
 SLACK = 150_000_000
 """Bytes added after the margin: room for run-to-run variation (the same run peaked at 0.45
@@ -85,9 +89,8 @@ to 0.48 GB) and for what the calling process holds besides."""
 
 STATED_RATIO = 1.6
 """Estimates are between 1 and this many times the measured peak (README, tests), except
-where the compile floor decides: compiling takes less memory for some small shapes than for
-the tiny one measured (``accurate`` at 200 x 120: 0.44 GB against 0.95 GB at 96 x 64), where
-the estimate (1.25 GB) is then up to 2.8 times the peak."""
+where the compile floor decides: compiling may take less memory for some small shapes than
+for the tiny one measured, and the estimate is then a larger multiple of the peak."""
 
 
 def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
@@ -143,6 +146,7 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
         "blocks": 0.0 if whole else matched * min(static.disparity_chunk, ndisp),
         "volume": matched * ndisp if whole else 0.0,
         "sgm": matched * ndisp if sgm else 0.0,
+        "sgm_wide": matched * ndisp if sgm and static.sgm_dtype != "uint8" else 0.0,
         "sgm8": matched * ndisp if sgm and static.sgm_paths == 8 else 0.0,
     }
 

@@ -32,7 +32,7 @@ print(json.dumps(int(status[0]) * 1024))
                                                           ("accurate", 480, 640, 192),
                                                           ("fast", 1440, 1920, 384)])
 def test_estimate_is_above_the_measured_peak_within_the_stated_margin(preset, height, width, ndisp):
-    # sizes the fit never saw, above the compile floor (measured 0.45, 1.0 and 2.05 GB here;
+    # sizes the fit never saw, above the compile floor (measured 0.45, 0.75 and 1.44 GB here;
     # fast's volume terms at the halved size)
     run = subprocess.run([sys.executable, "-c", MEASURE, str(height), str(width), str(ndisp), preset],
                          capture_output=True, text=True, timeout=600)
