@@ -308,12 +308,16 @@ class Preset(NamedTuple):
 
 # The semi-global presets store the aggregated cost in uint8 for the int16 paths (a quarter of
 # float32's bytes through the memory-bound scans; the same errors within 0.03 on every set, see
-# the README's design notes).
-_SGM = {"optimizer": "sgm", "sgm_paths": 4, "sgm_p2": 0.8, "n_segments": 0, "fill_radius": 7,
-        "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8"}
+# the README's design notes). P1 and P2 of each preset, the separable median's width and the
+# side-window passes were chosen by the static grids of the README's "Beyond the paper", by the
+# rule of benchmarks/held_out.py (lowest mean error relative to the best, over the three sets):
+# fast P1 0.12 and P2 0.8, accurate P1 0.16 and P2 1.15, finest P1 0.05 and P2 0.8 (Params()'s).
+_SGM = {"optimizer": "sgm", "sgm_paths": 4, "sgm_p1": 0.12, "sgm_p2": 0.8, "n_segments": 0,
+        "fill_radius": 7, "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8"}
 # accurate: two side-window passes and a 19 x 19 separable fill median instead of _SGM's three
-# and 15 x 15 (chosen by the static grid of the README's "Beyond the paper"); fast keeps _SGM's.
-_ACCURATE = {**_SGM, "aggregation_iterations": 2, "fill_radius": 9}
+# and 15 x 15; fast keeps _SGM's.
+_ACCURATE = {**_SGM, "aggregation_iterations": 2, "fill_radius": 9, "sgm_p1": 0.16,
+             "sgm_p2": 1.15}
 
 PRESETS: dict[str, Preset] = {
     "paper": Preset({}, "the paper's method: SSW aggregation, winner-takes-all, LR check, fill, "
@@ -325,7 +329,8 @@ PRESETS: dict[str, Preset] = {
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image "
                    "(coarse-to-fine): about 4x faster, less precise below 2 pixels"),
-    "finest": Preset({**_ACCURATE, "fill": "wmedian", "sgm_paths": 8},
+    "finest": Preset({**_ACCURATE, "fill": "wmedian", "sgm_paths": 8, "sgm_p1": 0.05,
+                      "sgm_p2": 0.8},
                      "accurate with 8 paths and the guided weighted-median fill of the rejected "
                      "pixels: the most accurate, about 2x accurate's time"),
 }
