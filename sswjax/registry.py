@@ -328,11 +328,12 @@ PRESETS: dict[str, Preset] = {
     "fast": Preset({**_SGM, "coarse_levels": 1},
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image "
-                   "(coarse-to-fine): about 4x faster, less precise below 2 pixels"),
+                   "(coarse-to-fine): about 5x faster, less precise below 2 pixels"),
     "finest": Preset({**_ACCURATE, "fill": "wmedian", "sgm_paths": 8, "sgm_p1": 0.05,
                       "sgm_p2": 0.8},
-                     "accurate with 8 paths and the guided weighted-median fill of the rejected "
-                     "pixels: the most accurate, about 2x accurate's time"),
+                     "accurate with 8 paths, P1 0.05 and P2 0.8, and the guided weighted-median "
+                     "fill of the rejected pixels: the most accurate on occlusions and slanted "
+                     "planes, about 2x accurate's time"),
 }
 """Preset name -> :class:`Preset`."""
 
