@@ -79,9 +79,9 @@ class StaticParams(NamedTuple):
         4 or 8 paths of the semi-global optimisation.
     sgm_dtype : str
         ``"int16"`` (default): the paths run on the volume quantised to int16, as OpenCV's SGBM
-        does, 1.5-3x faster on XLA CPU; ``"uint8"``: the same paths, the volume they read
-        stored in 255 levels (stored so block by block as the aggregation builds it): half the
-        bytes again; ``"float32"``: exact and differentiable (the parameter search uses it).
+        does, 1.5-3x faster on XLA CPU; ``"uint8"``: the same paths on the volume stored in 255
+        levels, block by block as the aggregation builds it (half the bytes again);
+        ``"float32"``: exact and differentiable (the parameter search uses it).
         :data:`sswjax.stages.sgm.SGM_DTYPES`.
     fill : str
         A key of :data:`sswjax.registry.FILLS`: how the pixels the left-right check rejects
