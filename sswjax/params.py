@@ -55,6 +55,14 @@ class StaticParams(NamedTuple):
         Parabola fit around the winner-takes-all minimum (Eq. 8 refined).
     lr_check : bool
         Left-right consistency check and filling of the pixels it rejects.
+    uniqueness_gap : int
+        ``g > 0``: with ``lr_check``, a pixel is also rejected when another pixel of its row
+        whose disparity differs by ``g`` or more claims the same right pixel at a lower matching
+        cost before aggregation (:func:`sswjax.stages.refinement.uniqueness_violations`): the
+        occluded pixels that took the foreground's disparity. 0 (default): off.
+    uniqueness_radius : int
+        The claims' costs of ``uniqueness_gap`` are box means over ``(2r+1)^2`` pixels (each
+        at its own disparity); 0: each pixel's own cost.
     fill_radius : int
         Radius of the median over filled pixels (Eq. 9): at most 5 with ``fill_median="square"``,
         15 with ``"separable"``.
@@ -89,6 +97,11 @@ class StaticParams(NamedTuple):
         ``"wmedian"``, a guided weighted median, :mod:`sswjax.stages.fill`).
     fill_weight_radius : int
         Window radius of the guided weights of ``fill="wmedian"``.
+    fill_band_fit : int
+        ``k > 0``: with ``fill="left-band"`` or ``"wmedian"``, the band left of each row's first
+        valid pixel takes a straight line fitted to the valid pixels of the next ``k`` columns
+        (:func:`sswjax.stages.refinement.fill_background`'s ``band_fit``); 0 (default): the
+        constant of the left-band rule.
     fill_source : str
         What the weighted median of ``fill="wmedian"`` counts: ``"filled"``, every pixel of the
         background-filled map, or ``"valid"``, the pixels that passed the check.
@@ -132,6 +145,7 @@ class StaticParams(NamedTuple):
     sgm_dtype: str = "int16"
     fill: str = "background"
     fill_weight_radius: int = 9
+    fill_band_fit: int = 0
     fill_source: str = "filled"
     fill_median: str = "square"
     preprocess: str = "none"
@@ -140,6 +154,8 @@ class StaticParams(NamedTuple):
     strip_overlap: int = 32
     coarse_levels: int = 0
     upsample_radius: int = 1
+    uniqueness_gap: int = 0
+    uniqueness_radius: int = 2
 
 
 class DynamicParams(NamedTuple):
@@ -270,10 +286,13 @@ _INT_FIELDS = {
     "disparity_chunk": (0, 100_000),
     "lcn_radius": (1, 50),
     "fill_weight_radius": (1, 50),
+    "fill_band_fit": (0, 100_000),
     "strip_rows": (0, 1_000_000),
     "strip_overlap": (0, 10_000),
     "coarse_levels": (0, 4),
     "upsample_radius": (0, 7),
+    "uniqueness_gap": (0, 100_000),
+    "uniqueness_radius": (0, 50),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,

@@ -18,11 +18,12 @@ from sswjax._checks import check_floating, check_positive_int, check_rank, check
 from sswjax.params import Params
 from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS, PREPROCESSORS
 from sswjax.stages.aggregation import SegmentTerm
+from sswjax.stages.baselines import box_filter
 from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
-from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_features
+from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_cost_at, matching_features
 from sswjax.stages.filters import side_window_median_filter
 from sswjax.stages.pyramid import halve_image
-from sswjax.stages.refinement import left_right_distance
+from sswjax.stages.refinement import left_right_distance, uniqueness_violations
 from sswjax.stages.segments import slic, slic_grid_shape
 from sswjax.stages.selection import Winners, fold_winners, no_winners, parabola_refine
 from sswjax.stages.sgm import PathSums, quantise_cost, sum_planes
@@ -149,7 +150,7 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
 
 
 def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: int = 0, *,
-            parabola=None, guide=None) -> tuple[jax.Array, ConfidenceCues]:
+            parabola=None, guide=None, features=None) -> tuple[jax.Array, ConfidenceCues]:
     """Eq. (8)-(9) after the winners are known: parabola, LR check, filling, side-window median.
 
     ``parabola``: the three costs of the sub-pixel fit, when they come from another volume than
@@ -171,6 +172,17 @@ def _refine(winners: Winners, params: Params, ndisp, labels=None, num_segments: 
         distance = left_right_distance(winners.disparity, winners.right_disparity)
         if static.lr_check:
             valid = distance <= params.dynamic.lr_tolerance
+            if static.uniqueness_gap > 0:
+                dynamic = params.dynamic
+                claim = matching_cost_at(
+                    features, winners.disparity, tad_weight=dynamic.tad_weight,
+                    gradient_weight=dynamic.gradient_weight, census_weight=dynamic.census_weight,
+                    tad_truncation=dynamic.tad_truncation,
+                    gradient_truncation=dynamic.gradient_truncation)
+                if static.uniqueness_radius > 0:
+                    claim = box_filter(claim, radius=static.uniqueness_radius)
+                valid &= ~uniqueness_violations(winners.disparity, claim,
+                                                gap=static.uniqueness_gap)
             failed = ~valid
             fill = FILLS[static.fill]
             extra = {"guide": guide} if fill.uses_guide else {}
@@ -211,6 +223,9 @@ def select_and_refine(cost: jax.Array, params: Params) -> jax.Array:
     """
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
+    if params.static.uniqueness_gap > 0:
+        raise ValueError("uniqueness_gap > 0 needs the images' features: use ssw_disparity, "
+                         "or uniqueness_gap=0 with a cost volume")
     ndisp = cost.shape[0]
     winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, ndisp)
     return _refine(winners, params, ndisp)[0]
@@ -389,11 +404,13 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
                                      params=params)
         winners = _fold_volume(optimised, limit, chunk)
         parabola = _costs_around(cost, winners.disparity) if optimizer.subpixel_on_input else None
-        return _refine(winners, params, limit, labels, num_segments, parabola=parabola, guide=left)
+        return _refine(winners, params, limit, labels, num_segments, parabola=parabola, guide=left,
+                       features=features)
     if chunk == 0 or chunk >= ndisp:
         cost = _aggregate_slices(features, left, labels, num_segments, 0, ndisp, params)
         winners = _fold(no_winners(cost.shape[1:]), _with_halo(cost), 0, limit)
-        return _refine(winners, params, limit, labels, num_segments, guide=left)
+        return _refine(winners, params, limit, labels, num_segments, guide=left,
+                       features=features)
 
     # Each step aggregates a block of K slices and folds the block of the previous step, which
     # the loop carries: every slice is computed once, and the fold reads a materialised block
@@ -418,7 +435,7 @@ def _match(left, right, params: Params, ndisp: int, valid_ndisp) -> tuple[jax.Ar
     start = (no_winners((height, width)), empty, inf_plane)
     (winners, last, before), _ = jax.lax.scan(step, start, firsts)
     winners = fold(winners, last, before, inf_plane, firsts[-1])
-    return _refine(winners, params, limit, labels, num_segments, guide=left)
+    return _refine(winners, params, limit, labels, num_segments, guide=left, features=features)
 
 
 def _match_coarse_to_fine(left, right, params: Params, ndisp: int,

@@ -239,7 +239,7 @@ def _background_fill(disparity, valid, *, labels, num_segments, params):
 
 def _left_band_fill(disparity, valid, *, labels, num_segments, params):
     return fill_invalid(disparity, valid, radius=params.static.fill_radius, left_band=True,
-                        median=params.static.fill_median)
+                        median=params.static.fill_median, band_fit=params.static.fill_band_fit)
 
 
 def _weighted_median_fill(disparity, valid, *, labels, num_segments, params, guide=None):
@@ -249,7 +249,8 @@ def _weighted_median_fill(disparity, valid, *, labels, num_segments, params, gui
     return weighted_median_fill(disparity, valid, radius=params.static.fill_weight_radius,
                                 guide=guide, eps=params.dynamic.fill_eps,
                                 quantile=params.dynamic.fill_quantile,
-                                source=params.static.fill_source)
+                                source=params.static.fill_source,
+                                band_fit=params.static.fill_band_fit)
 
 
 def _plane_fill(disparity, valid, *, labels, num_segments, params):

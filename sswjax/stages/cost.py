@@ -194,6 +194,80 @@ def matching_features(
     )
 
 
+def _pixel_cost(features: MatchingFeatures, colour, gradient, census, *, tad_weight,
+                gradient_weight, census_weight, tad_truncation, gradient_truncation) -> jax.Array:
+    """Eq. (5) between the left features and right features already moved onto the left
+    pixels (``colour`` (C, H, W), ``gradient`` (H, W), ``census`` (n_words, H, W)): float32
+    (H, W)."""
+    # The channel mean is a sum of per-channel planes: a reduction over the leading channel
+    # axis of the vmapped (K, C, H, W) block ran 7x slower on XLA CPU (census words alike).
+    channels = features.left.shape[0]
+    tad = sum(jnp.abs(features.left[c] - colour[c]) for c in range(channels)) / channels
+    gm = jnp.abs(features.gradient_left - gradient)
+    ct = hamming_distance(features.census_left, census).astype(jnp.float32)
+    return (
+        tad_weight * jnp.minimum(tad, tad_truncation) / tad_truncation
+        + gradient_weight * jnp.minimum(gm, gradient_truncation) / gradient_truncation
+        + census_weight * ct / features.n_bits
+    )
+
+
+def matching_cost_at(
+    features: MatchingFeatures,
+    disparity: jax.Array,
+    *,
+    tad_weight,
+    gradient_weight,
+    census_weight,
+    tad_truncation,
+    gradient_truncation,
+) -> jax.Array:
+    """The cost of Eq. (5) of each left pixel at its own disparity: ``C(p, disparity[p])``.
+
+    The same value as ``matching_cost(features, 0, ndisp, ...)[disparity[p], y, x]``, from one
+    gather of the right features per pixel instead of a volume.
+
+    Parameters
+    ----------
+    features : MatchingFeatures
+    disparity : int32 (H, W), >= 0
+        Integer disparities; where ``x - d < 0`` the cost is the border value
+        ``tad_weight + gradient_weight + census_weight``, as in :func:`matching_cost`.
+    tad_weight, gradient_weight, census_weight, tad_truncation, gradient_truncation
+        As in :func:`cost_volume`.
+
+    Returns
+    -------
+    float32 (H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> img = jnp.linspace(0, 1, 4 * 16 * 3).reshape(4, 16, 3)
+    >>> f = matching_features(img, img)
+    >>> w = dict(tad_weight=1., gradient_weight=1., census_weight=1., tad_truncation=0.1,
+    ...          gradient_truncation=0.1)
+    >>> float(matching_cost_at(f, jnp.zeros((4, 16), jnp.int32), **w).max())
+    0.0
+    """
+    check_rank("disparity", disparity, 2)
+    if disparity.shape != features.gradient_left.shape:
+        raise ValueError(f"disparity must have shape {features.gradient_left.shape}, got "
+                         f"{disparity.shape}")
+    width = disparity.shape[1]
+    source = jnp.arange(width) - disparity
+    index = jnp.clip(source, 0, width - 1)
+
+    def moved(x):
+        return jnp.take_along_axis(x, jnp.broadcast_to(index, x.shape), axis=-1)
+
+    cost = _pixel_cost(features, moved(features.right), moved(features.gradient_right),
+                       moved(features.census_right), tad_weight=tad_weight,
+                       gradient_weight=gradient_weight, census_weight=census_weight,
+                       tad_truncation=tad_truncation, gradient_truncation=gradient_truncation)
+    return jnp.where(source < 0, tad_weight + gradient_weight + census_weight, cost)
+
+
 def matching_cost(
     features: MatchingFeatures,
     first,
@@ -239,19 +313,10 @@ def matching_cost(
         return lax.dynamic_slice_in_dim(x, pad - jnp.minimum(d, pad), width, axis=x.ndim - 1)
 
     def cost_slice(d):
-        # The channel mean is a sum of per-channel planes: a reduction over the leading channel
-        # axis of the vmapped (K, C, H, W) block ran 7x slower on XLA CPU (census words alike).
-        channels = features.left.shape[0]
-        tad = sum(
-            jnp.abs(features.left[c] - shifted(padded[0][c], d)) for c in range(channels)
-        ) / channels
-        gm = jnp.abs(features.gradient_left - shifted(padded[1], d))
-        ct = hamming_distance(features.census_left, shifted(padded[2], d)).astype(jnp.float32)
-        cost = (
-            tad_weight * jnp.minimum(tad, tad_truncation) / tad_truncation
-            + gradient_weight * jnp.minimum(gm, gradient_truncation) / gradient_truncation
-            + census_weight * ct / features.n_bits
-        )
+        cost = _pixel_cost(features, shifted(padded[0], d), shifted(padded[1], d),
+                           shifted(padded[2], d), tad_weight=tad_weight,
+                           gradient_weight=gradient_weight, census_weight=census_weight,
+                           tad_truncation=tad_truncation, gradient_truncation=gradient_truncation)
         return jnp.where(columns < d, tad_weight + gradient_weight + census_weight, cost)
 
     return jax.vmap(cost_slice)(first + jnp.arange(count)).astype(jnp.float32)

@@ -42,6 +42,7 @@ def weighted_median_fill(
     quantile=0.5,
     source: str = "filled",
     left_band: bool = True,
+    band_fit: int = 0,
 ) -> jax.Array:
     """Fill the invalid pixels with a guided weighted median of their neighbours' disparities.
 
@@ -74,7 +75,7 @@ def weighted_median_fill(
     source : {"filled", "valid"}
         The histogram counts every pixel of the background-filled map (``"filled"``) or only
         the valid ones (``"valid"``).
-    left_band : bool
+    left_band, band_fit : bool, int
         Passed to :func:`~sswjax.stages.refinement.fill_background`.
 
     Returns
@@ -111,7 +112,8 @@ def weighted_median_fill(
         _check_guide(guide, disparity, channels=(1, 3))
         smooth = _guided_filter_fn(guide, radius, eps)
 
-    filled = fill_background(disparity.astype(jnp.float32), valid, left_band=left_band)
+    filled = fill_background(disparity.astype(jnp.float32), valid, left_band=left_band,
+                             band_fit=band_fit)
     bins = jnp.maximum(jnp.round(filled), 0).astype(jnp.int32)
     counted = jnp.ones(filled.shape, jnp.float32) if source == "filled" else valid.astype(jnp.float32)
     total = smooth(counted)

@@ -108,8 +108,63 @@ def left_right_consistency(
     return left_right_distance(left_disparity, right_disparity) <= tolerance
 
 
-def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool = False
-                    ) -> jax.Array:
+def uniqueness_violations(disparity: jax.Array, cost: jax.Array, *, gap: int) -> jax.Array:
+    """Pixels whose right-image match is claimed more cheaply by a pixel of another surface.
+
+    Left pixels ``p`` and ``q`` of one row claim the same right pixel when
+    ``x_p - d_p = x_q - d_q``; one point of the right image cannot be both. Where the claims'
+    disparities differ by ``gap`` or more (two surfaces, not the compressed pixels of one
+    slanted surface), the claim with the larger matching cost loses. Every pixel claims, valid
+    or not. Occluded pixels that took the foreground's disparity pass the left-right check when
+    the right view is derived from the left volume (both inherit its fattening), but their cost
+    before aggregation, against a right pixel of another surface, is high.
+
+    This is the uniqueness constraint of Marr & Poggio (Science 1976) used as an occlusion
+    test; which claim wins is our choice (the cost before aggregation, where fattening has not
+    spread the foreground's match), and each claim is compared with its right pixel's winner
+    only.
+
+    Parameters
+    ----------
+    disparity : int32 (H, W)
+        Integer disparities of the left view (winner-takes-all).
+    cost : float32 (H, W)
+        Each pixel's matching cost at its disparity (before aggregation, e.g.
+        :func:`sswjax.stages.cost.matching_cost_at`).
+    gap : int >= 1, keyword-only
+        Smallest disparity difference between claims that are resolved.
+
+    Returns
+    -------
+    bool (H, W): True where the pixel's claim loses.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> d = jnp.array([[0, 0, 0, 3, 3, 3]])  # x=0 with 0 and x=3 with 3 claim right pixel 0
+    >>> uniqueness_violations(d, jnp.array([[0.1, 0., 0., 0.5, 0., 0.]]), gap=2).tolist()
+    [[False, False, False, True, False, False]]
+    """
+    check_rank("disparity", disparity, 2)
+    check_same_shape("disparity", disparity, "cost", cost)
+    if isinstance(gap, bool) or not isinstance(gap, int) or gap < 1:
+        raise ValueError(f"gap must be an integer >= 1, got {gap!r}")
+    height, width = disparity.shape
+    target = jnp.arange(width)[None, :] - disparity
+    # One flat index per (row, right column); claims outside the right image are dropped.
+    flat = jnp.where(target >= 0, jnp.arange(height)[:, None] * width + target, height * width)
+    cost = cost.astype(jnp.float32)
+    best = jnp.full(height * width, jnp.inf, jnp.float32).at[flat].min(cost, mode="drop")
+    best_at = best.at[flat].get(mode="fill", fill_value=jnp.inf)
+    # The winner's disparity (ties: the largest), read back at each claimant.
+    winner = jnp.full(height * width, -1, disparity.dtype).at[
+        jnp.where(cost <= best_at, flat, height * width)].max(disparity, mode="drop")
+    winner_at = winner.at[flat].get(mode="fill", fill_value=-1)
+    return (cost > best_at) & (jnp.abs(winner_at - disparity) >= gap) & (winner_at >= 0)
+
+
+def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool = False,
+                    band_fit: int = 0) -> jax.Array:
     """Give each invalid pixel the smaller of the nearest valid disparities left and right of it.
 
     A side without a valid pixel is ignored; a row without any valid pixel gets 0.
@@ -123,6 +178,13 @@ def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool =
         ``x`` (so that surface, carried leftwards, has no match in the right image: what makes
         the pixel fail the check), take ``d_r`` rather than the smaller one: near the left
         border the smaller one is usually a wrong match, not the background.
+    band_fit : int >= 0, keyword-only
+        With ``left_band``, ``k > 0``: the pixels left of their row's first valid pixel ``x0``
+        (the band of the left border that has no match) take the straight line
+        ``d = a + b (x - x0)`` fitted by least squares to the valid pixels of columns
+        ``x0 .. x0 + k - 1``, when at least a third of them are valid (else the rule above),
+        clipped to ``[0, max(disparity)]``: a slanted surface continues into the band, where a
+        constant leaves it over a band as wide as its disparity. 0: the constant.
 
     Returns
     -------
@@ -151,11 +213,36 @@ def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool =
     if left_band:
         fill = jnp.where(jnp.isfinite(from_right) & (columns < from_right), from_right, fill)
     fill = jnp.where(jnp.isfinite(fill), fill, 0.0)
+    if band_fit > 0:
+        if not left_band:
+            raise ValueError("band_fit > 0 needs left_band=True")
+        fill = _fit_band(disparity, valid, fill, band_fit)
     return jnp.where(valid, disparity, fill)
 
 
+def _fit_band(disparity: jax.Array, valid: jax.Array, fill: jax.Array, width: int) -> jax.Array:
+    """``fill`` with each row's pixels left of its first valid one on the row's fitted line
+    (:func:`fill_background`'s ``band_fit``); all arrays (H, W)."""
+    columns = jnp.arange(disparity.shape[1])[None, :]
+    first = jnp.argmax(valid, axis=1)[:, None]
+    offset = (columns - first).astype(jnp.float32)
+    counted = valid & (offset < width) & (offset >= 0)
+
+    def total(x):
+        return jnp.sum(jnp.where(counted, x, 0.0), axis=1, keepdims=True)
+
+    safe = jnp.where(counted, disparity, 0.0)
+    n, sx, sd = total(1.0), total(offset), total(safe)
+    sxx, sxd = total(offset * offset), total(offset * safe)
+    det = n * sxx - sx * sx
+    slope = jnp.where(det > 0, (n * sxd - sx * sd) / jnp.where(det > 0, det, 1.0), 0.0)
+    intercept = (sd - slope * sx) / jnp.maximum(n, 1.0)
+    line = jnp.clip(intercept + slope * offset, 0.0, jnp.max(jnp.where(valid, disparity, 0.0)))
+    return jnp.where((offset < 0) & (3 * n >= width), line, fill)
+
+
 def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_band: bool = False,
-                 median: str = "square") -> jax.Array:
+                 median: str = "square", band_fit: int = 0) -> jax.Array:
     """Eq. (9) as we read it: background fill, then a median over the filled pixels only.
 
     Parameters
@@ -165,6 +252,8 @@ def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_ba
     radius : int >= 0
         Median window radius; 0 keeps the background fill.
     left_band : bool
+        See :func:`fill_background`.
+    band_fit : int >= 0
         See :func:`fill_background`.
     median : {"square", "separable"}
         A key of :data:`MEDIANS`: the median over the ``(2r+1)^2`` window, or the separable
@@ -184,7 +273,7 @@ def fill_invalid(disparity: jax.Array, valid: jax.Array, *, radius: int, left_ba
     """
     if median not in MEDIANS:
         raise ValueError(f"median must be one of {tuple(MEDIANS)}, got {median!r}")
-    filled = fill_background(disparity, valid, left_band=left_band)
+    filled = fill_background(disparity, valid, left_band=left_band, band_fit=band_fit)
     if radius == 0:
         return filled
     return jnp.where(valid, filled, MEDIANS[median](filled, radius=radius))

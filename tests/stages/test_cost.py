@@ -10,6 +10,7 @@ from sswjax.stages.cost import (
     cost_volume,
     hamming_distance,
     matching_cost,
+    matching_cost_at,
     matching_features,
     sobel_gradient_magnitude,
 )
@@ -243,6 +244,29 @@ def test_matching_cost_volume_and_traced_block_match_the_reference(pair):
     np.testing.assert_allclose(whole, reference, atol=2e-5, rtol=0)
     block = jax.jit(lambda first: matching_cost(features, first, 3, **kw))(jnp.int32(9))
     np.testing.assert_allclose(np.asarray(block), reference[9:12], atol=2e-5, rtol=0)
+
+
+def test_matching_cost_at_gathers_the_volume(pair):
+    """Each pixel's cost at its own disparity equals the volume's entry, the border included."""
+    left, right = pair
+    kw = dict(tad_weight=0.3, gradient_weight=0.5, census_weight=0.7, tad_truncation=0.1,
+              gradient_truncation=0.05)
+    ndisp = 9
+    features = matching_features(jnp.asarray(left), jnp.asarray(right))
+    volume = np.asarray(matching_cost(features, 0, ndisp, **kw))
+    disparity = np.random.default_rng(3).integers(0, ndisp, size=volume.shape[1:])
+    ours = np.asarray(matching_cost_at(features, jnp.asarray(disparity, jnp.int32), **kw))
+    expected = np.take_along_axis(volume, disparity[None], axis=0)[0]
+    np.testing.assert_allclose(ours, expected, atol=1e-6, rtol=0)
+    assert (disparity > np.arange(disparity.shape[1])).any()  # border pixels were drawn
+
+
+def test_matching_cost_at_rejects_a_wrong_shape(pair):
+    features = matching_features(jnp.asarray(pair[0]), jnp.asarray(pair[1]))
+    kw = dict(tad_weight=1., gradient_weight=1., census_weight=1., tad_truncation=0.1,
+              gradient_truncation=0.1)
+    with pytest.raises(ValueError, match="disparity must have shape"):
+        matching_cost_at(features, jnp.zeros((3, 3), jnp.int32), **kw)
 
 
 def test_cost_volume_gray_single_channel(pair):

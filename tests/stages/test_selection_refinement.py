@@ -4,7 +4,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.refinement import fill_background, fill_invalid, left_right_consistency, right_cost_volume
+from sswjax.stages.refinement import (fill_background, fill_invalid, left_right_consistency,
+                                      right_cost_volume, uniqueness_violations)
 from sswjax.stages.selection import fold_winners, no_winners, soft_argmin, subpixel_parabola, winner_takes_all
 
 # ---------------------------------------------------------------------------------------------
@@ -274,6 +275,58 @@ def test_left_band_fill_keeps_the_surface_that_has_no_match():
     assert fill_background(d, v, left_band=True).tolist() == [[0, 5, 5, 5, 5, 5, 1, 1, 1]]
 
 
+def band_fit_reference(d, v, width):
+    """Loops: the left-band fill, then each row's pixels left of its first valid one on the
+    least-squares line through the valid pixels of the next ``width`` columns."""
+    ours = fill_background_reference(d, v, left_band=True)
+    top = d[v].max()
+    for y in range(d.shape[0]):
+        if not v[y].any():
+            continue
+        x0 = int(np.argmax(v[y]))
+        xs = [x for x in range(x0, min(x0 + width, d.shape[1])) if v[y, x]]
+        if 3 * len(xs) < width:
+            continue
+        if len(set(xs)) > 1:
+            slope, intercept = np.polyfit(np.array(xs) - x0, d[y, xs].astype(np.float64), 1)
+        else:
+            slope, intercept = 0.0, float(d[y, xs[0]])
+        for x in range(x0):
+            ours[y, x] = np.clip(intercept + slope * (x - x0), 0, top)
+    return ours
+
+
+def test_fill_background_band_fit_continues_a_slanted_surface():
+    # A surface d = 6 + 0.5 x seen from x = 4 on: the band x < 4 continues it (8.0 at x = 4).
+    x = np.arange(12, dtype=np.float32)
+    d = (6 + 0.5 * x)[None].repeat(2, axis=0)
+    v = np.ones(d.shape, bool)
+    v[:, :4] = False
+    v[1, 5:11] = False  # row 1: columns 4 .. 9 hold one valid pixel, less than a third of 6
+    ours = np.asarray(fill_background(jnp.asarray(d), jnp.asarray(v), left_band=True,
+                                      band_fit=6))
+    np.testing.assert_allclose(ours[0], d[0], atol=1e-5)
+    assert ours[1, :4].tolist() == [8.0] * 4  # the left-band rule's constant
+    assert fill_background(jnp.asarray(d), jnp.asarray(v), left_band=True)[0, :4].tolist() == [8.0] * 4
+
+
+def test_fill_background_band_fit_matches_reference_on_random_maps():
+    rng = np.random.default_rng(8)
+    d = (rng.random((10, 24)) * 12 + np.arange(24) * 0.3).astype(np.float32)
+    v = rng.random(d.shape) < 0.6
+    v[:, :3] = False
+    v[4] = False  # no valid pixel
+    for width in (1, 4, 9):
+        ours = np.asarray(fill_background(jnp.asarray(d), jnp.asarray(v), left_band=True,
+                                          band_fit=width))
+        np.testing.assert_allclose(ours, band_fit_reference(d, v, width), atol=1e-4)
+
+
+def test_fill_background_band_fit_needs_the_left_band():
+    with pytest.raises(ValueError, match="band_fit > 0 needs left_band=True"):
+        fill_background(jnp.zeros((2, 3)), jnp.ones((2, 3), bool), band_fit=3)
+
+
 @pytest.mark.parametrize("median", ["square", "separable"])
 @pytest.mark.parametrize("radius", [0, 1, 2])
 def test_fill_invalid(radius, median):
@@ -304,3 +357,50 @@ def test_fill_invalid_rejects_an_unknown_median():
     d = jnp.zeros((4, 4))
     with pytest.raises(ValueError, match="median must be one of"):
         fill_invalid(d, d > 0, radius=1, median="mean")
+
+
+def uniqueness_reference(disparity, cost, gap):
+    """Loops: per row and right pixel, the cheapest claim (ties: the largest disparity) beats
+    every dearer claim whose disparity is at least ``gap`` away from it."""
+    height, width = disparity.shape
+    lose = np.zeros(disparity.shape, bool)
+    for y in range(height):
+        claims = {}
+        for x in range(width):
+            if x - disparity[y, x] >= 0:
+                claims.setdefault(x - disparity[y, x], []).append(x)
+        for xs in claims.values():
+            best = min(cost[y, x] for x in xs)
+            winner = max(disparity[y, x] for x in xs if cost[y, x] <= best)
+            for x in xs:
+                lose[y, x] = cost[y, x] > best and abs(winner - disparity[y, x]) >= gap
+    return lose
+
+
+@pytest.mark.parametrize("gap", [1, 2, 4])
+def test_uniqueness_violations_matches_reference(gap):
+    rng = np.random.default_rng(gap)
+    disparity = rng.integers(0, 8, size=(6, 30))
+    cost = rng.choice([0.1, 0.2, 0.3, 0.5], size=disparity.shape).astype(np.float32)  # ties too
+    ours = np.asarray(uniqueness_violations(jnp.asarray(disparity, jnp.int32), jnp.asarray(cost),
+                                            gap=gap))
+    expected = uniqueness_reference(disparity, cost, gap)
+    np.testing.assert_array_equal(ours, expected)
+    assert expected.any() and not expected.all()
+
+
+def test_uniqueness_violations_occlusion_scene():
+    """A foreground (d = 4) fattened by two pixels over the occluded background (d = 1): the
+    fattened pixels claim the right pixels of the visible background at a higher cost and
+    lose; a slanted surface (neighbours' disparities at most one apart) never does."""
+    d = np.array([[1, 1, 1, 1, 1, 1, 4, 4, 4, 4, 4, 4]])
+    cost = np.array([[0., 0., 0., 0., 0., 0., .6, .6, 0., 0., 0., 0.]], np.float32)
+    lose = np.asarray(uniqueness_violations(jnp.asarray(d, jnp.int32), jnp.asarray(cost), gap=2))
+    assert lose.tolist() == [[False] * 6 + [True, True] + [False] * 4]
+    slant = jnp.array([[0, 0, 1, 1, 2, 2, 3, 3, 4]], jnp.int32)
+    assert not uniqueness_violations(slant, jnp.linspace(0, 1, 9)[None], gap=2).any()
+
+
+def test_uniqueness_violations_rejects_bad_gap():
+    with pytest.raises(ValueError, match="gap must be an integer >= 1"):
+        uniqueness_violations(jnp.zeros((2, 3), jnp.int32), jnp.zeros((2, 3)), gap=0)
