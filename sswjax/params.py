@@ -60,6 +60,13 @@ class StaticParams(NamedTuple):
         whose disparity differs by ``g`` or more claims the same right pixel at a lower matching
         cost before aggregation (:func:`sswjax.stages.refinement.uniqueness_violations`): the
         occluded pixels that took the foreground's disparity. 0 (default): off.
+    aggregated_lr_gap : int
+        ``g > 0``: with ``lr_check`` and an optimiser, a pixel is also rejected where the right
+        view of the aggregated cost *before* the optimiser (its winner-takes-all) disagrees
+        with the pixel's disparity by ``g`` or more: the optimiser spreads a foreground over
+        the occlusion beside it in the left view and in the right view derived from the same
+        volume alike, so the final views agree there; the aggregated cost's right view
+        does not. 0 (default): off.
     uniqueness_radius : int
         The claims' costs of ``uniqueness_gap`` are box means over ``(2r+1)^2`` pixels (each
         at its own disparity); 0: each pixel's own cost.
@@ -96,7 +103,10 @@ class StaticParams(NamedTuple):
         are filled (``"background"``, Eq. 9; ``"plane"``, superpixel planes first;
         ``"wmedian"``, a guided weighted median, :mod:`sswjax.stages.fill`).
     fill_weight_radius : int
-        Window radius of the guided weights of ``fill="wmedian"``.
+        Window radius of the guided weights of ``fill="wmedian"``, and of the sampled window
+        of ``fill="vote"``.
+    vote_step : int
+        Sampling step of the window of ``fill="vote"`` (:func:`sswjax.stages.fill.vote_fill`).
     fill_band_fit : int
         ``k > 0``: with ``fill="left-band"`` or ``"wmedian"``, the band left of each row's first
         valid pixel takes a straight line fitted to the valid pixels of the next ``k`` columns
@@ -146,6 +156,7 @@ class StaticParams(NamedTuple):
     fill: str = "background"
     fill_weight_radius: int = 9
     fill_band_fit: int = 0
+    vote_step: int = 4
     fill_source: str = "filled"
     fill_median: str = "square"
     preprocess: str = "none"
@@ -156,6 +167,7 @@ class StaticParams(NamedTuple):
     upsample_radius: int = 1
     uniqueness_gap: int = 0
     uniqueness_radius: int = 2
+    aggregated_lr_gap: int = 0
 
 
 class DynamicParams(NamedTuple):
@@ -205,6 +217,12 @@ class DynamicParams(NamedTuple):
         ``coarse_levels > 0``: largest spread (fine pixels) of the four coarse neighbours'
         disparities that a doubled pixel interpolates; beyond it the pixel takes the neighbour
         of the nearest colour (:func:`~sswjax.stages.upsampling.upsample_disparity`).
+    vote_sigma : float > 0
+        ``fill="vote"``: the intensity difference (in [0, 1] units) at which a neighbour's vote
+        weighs a quarter of an identical one's.
+    vote_tolerance : float
+        ``fill="vote"``: how close (pixels) a neighbour's disparity must be to a candidate to
+        vote for it.
     """
 
     tad_weight: Any = 0.05000000074505806
@@ -226,6 +244,8 @@ class DynamicParams(NamedTuple):
     fill_eps: Any = 1e-3
     fill_quantile: Any = 0.5
     upsample_jump: Any = 3.0
+    vote_sigma: Any = 0.2
+    vote_tolerance: Any = 2.0
 
 
 @jax.tree_util.register_dataclass
@@ -287,12 +307,14 @@ _INT_FIELDS = {
     "lcn_radius": (1, 50),
     "fill_weight_radius": (1, 50),
     "fill_band_fit": (0, 100_000),
+    "vote_step": (1, 50),
     "strip_rows": (0, 1_000_000),
     "strip_overlap": (0, 10_000),
     "coarse_levels": (0, 4),
     "upsample_radius": (0, 7),
     "uniqueness_gap": (0, 100_000),
     "uniqueness_radius": (0, 50),
+    "aggregated_lr_gap": (0, 100_000),
 }
 _BOOL_FIELDS = ("subpixel", "lr_check")
 _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTIONS,
@@ -302,7 +324,7 @@ _CHOICE_FIELDS = {"aggregation": AGGREGATORS, "window_selection": WINDOW_SELECTI
                   "fill_median": FILL_MEDIANS}
 _UNIT_FIELDS = ("sgm_segment_factor", "plane_min_support", "fill_quantile")
 _POSITIVE_FIELDS = ("tad_truncation", "gradient_truncation", "slic_compactness", "sgm_sigma",
-                    "plane_inlier_scale", "lcn_eps", "fill_eps", "fill_quantile")
+                    "plane_inlier_scale", "lcn_eps", "fill_eps", "fill_quantile", "vote_sigma")
 
 
 def _check_value(name: str, value) -> Any:

@@ -42,7 +42,7 @@ from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_dispar
 from sswjax.stages.aggregation import segment_side_window_aggregation
 from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
-from sswjax.stages.fill import weighted_median_fill
+from sswjax.stages.fill import vote_fill, weighted_median_fill
 from sswjax.stages.refinement import fill_invalid
 from sswjax.stages.sgm import half_resolution_semi_global, quantisation, semi_global_sums
 from sswjax.stages.baselines import (
@@ -253,6 +253,17 @@ def _weighted_median_fill(disparity, valid, *, labels, num_segments, params, gui
                                 band_fit=params.static.fill_band_fit)
 
 
+def _vote_fill(disparity, valid, *, labels, num_segments, params, guide=None):
+    if guide is None:
+        raise ValueError("fill 'vote' needs the left image (guide=), which the whole "
+                         "pipeline passes (select_and_refine alone has none)")
+    static = params.static
+    return vote_fill(disparity, valid, guide=guide, median_radius=static.fill_radius,
+                     radius=static.fill_weight_radius, step=static.vote_step,
+                     sigma=params.dynamic.vote_sigma, tolerance=params.dynamic.vote_tolerance,
+                     median=static.fill_median, band_fit=static.fill_band_fit)
+
+
 def _plane_fill(disparity, valid, *, labels, num_segments, params):
     filled = _background_fill(disparity, valid, labels=labels, num_segments=num_segments,
                               params=params)
@@ -271,6 +282,9 @@ FILLS: dict[str, Fill] = {
     "wmedian": Fill(_weighted_median_fill, "the left-band fill, then a weighted median of the "
                     "neighbours' disparities, weighted by the guided filter on the left image "
                     "(Rhemann et al. 2011, Ma et al. 2013)", uses_guide=True),
+    "vote": Fill(_vote_fill, "the left-band fill, then a vote among it and the nearest valid "
+                 "disparities left and right on the row, by neighbours weighted by intensity "
+                 "likeness", uses_guide=True),
     "plane": Fill(_plane_fill, "a robust plane per superpixel through its valid pixels where "
                   "they support it, else the background fill", uses_segments=True),
 }
@@ -313,26 +327,33 @@ class Preset(NamedTuple):
 # side-window passes were chosen by the static grids of the README's "Beyond the paper", by the
 # rule of benchmarks/held_out.py (lowest mean error relative to the best, over the three sets):
 # fast P1 0.12 and P2 0.8, accurate P1 0.16 and P2 1.15, finest P1 0.05 and P2 0.8 (Params()'s).
+# The occlusion tests of issue 11 in every semi-global preset: the uniqueness test on costs
+# before aggregation, the aggregated cost's right view, and the left band's fitted line.
+_OCCLUSIONS = {"uniqueness_gap": 2, "uniqueness_radius": 2, "aggregated_lr_gap": 2,
+               "fill_band_fit": 15}
 _SGM = {"optimizer": "sgm", "sgm_paths": 4, "sgm_p1": 0.12, "sgm_p2": 0.8, "n_segments": 0,
-        "fill_radius": 7, "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8"}
-# accurate: two side-window passes and a 19 x 19 separable fill median instead of _SGM's three
-# and 15 x 15; fast keeps _SGM's.
-_ACCURATE = {**_SGM, "aggregation_iterations": 2, "fill_radius": 9, "sgm_p1": 0.16,
-             "sgm_p2": 1.15}
+        "fill_radius": 7, "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8",
+        **_OCCLUSIONS}
+# accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
+# _SGM's three passes, 15 x 15 and left-band fill; fast keeps _SGM's.
+_ACCURATE = {**_SGM, "aggregation_iterations": 1, "fill_radius": 9, "fill": "vote",
+             "sgm_p1": 0.2, "sgm_p2": 1.15}
 
 PRESETS: dict[str, Preset] = {
     "paper": Preset({}, "the paper's method: SSW aggregation, winner-takes-all, LR check, fill, "
                         "side-window median"),
     "accurate": Preset(_ACCURATE,
-                       "two side-window passes without the segment term, then semi-global "
-                       "optimisation of the aggregated cost (4 paths), left-band fill"),
+                       "one side-window pass without the segment term, then semi-global "
+                       "optimisation of the aggregated cost (4 paths), occlusion tests, "
+                       "intensity-weighted vote fill"),
     "fast": Preset({**_SGM, "coarse_levels": 1},
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image "
                    "(coarse-to-fine): about 5x faster, less precise below 2 pixels"),
-    "finest": Preset({**_ACCURATE, "fill": "wmedian", "sgm_paths": 8, "sgm_p1": 0.05,
-                      "sgm_p2": 0.8},
-                     "accurate with 8 paths, P1 0.05 and P2 0.8, and the guided weighted-median "
+    "finest": Preset({**_ACCURATE, "aggregation_iterations": 2, "fill": "wmedian",
+                      "sgm_paths": 8, "sgm_p1": 0.05, "sgm_p2": 0.8},
+                     "accurate with two side-window passes, 8 paths, P1 0.05 and P2 0.8, and the "
+                     "guided weighted-median "
                      "fill of the rejected pixels: the most accurate on occlusions and slanted "
                      "planes, about 2x accurate's time"),
 }

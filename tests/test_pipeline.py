@@ -282,6 +282,38 @@ def test_uniqueness_test_only_adds_rejections():
     assert good_on[visible].mean() >= good_off[visible].mean() - 0.01
 
 
+@pytest.mark.parametrize("chunk, limit", [(4, 16), (4, 11), (3, 9), (0, 9)])
+@pytest.mark.parametrize("dtype", [np.float32, np.uint8])
+def test_right_view_of_a_stored_volume_is_its_argmin(chunk, limit, dtype):
+    """The right view read block by block from the stored volume equals the argmin of the
+    whole volume's right view, disparities at or beyond a traced limit excluded (ties to the
+    smaller disparity; uint8 volumes have many)."""
+    from sswjax import pipeline
+    from sswjax.stages.refinement import right_cost_volume
+
+    rng = np.random.default_rng(chunk + limit)
+    volume = rng.integers(0, 6, size=(NDISP, 12, 40)).astype(dtype)
+    view = jax.jit(lambda v, t: pipeline._right_view(v, t, chunk))(jnp.asarray(volume),
+                                                                   jnp.int32(limit))
+    inside = volume[:limit].astype(np.float32)
+    expected = np.argmin(np.asarray(right_cost_volume(jnp.asarray(inside))), axis=0)
+    np.testing.assert_array_equal(np.asarray(view), expected)
+
+
+def test_aggregated_check_only_adds_rejections():
+    left, right, _, _ = (jnp.asarray(a) for a in layered_pair())
+    base = sswjax.preset("accurate")
+    off = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=0), ndisp=NDISP)
+    on = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=1), ndisp=NDISP)
+    assert bool(jnp.all(on.lr_failed | ~off.lr_failed))
+    assert bool(jnp.any(on.lr_failed & ~off.lr_failed))
+    # without an optimiser the winners' right view is the aggregated one: nothing to add
+    paper = sswjax.preset("paper").replace(n_segments=0)
+    assert bool(jnp.all(sswjax.ssw_outputs(left, right, paper, ndisp=NDISP).lr_failed ==
+                        sswjax.ssw_outputs(left, right, paper.replace(aggregated_lr_gap=1),
+                                           ndisp=NDISP).lr_failed))
+
+
 def test_select_and_refine_refuses_the_uniqueness_test():
     with pytest.raises(ValueError, match="uniqueness_gap > 0 needs the images"):
         sswjax.select_and_refine(jnp.zeros((4, 8, 16)), Params().replace(uniqueness_gap=2))

@@ -69,9 +69,8 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
 
     Eq. (8) for both views at once, as unrolled chains of element-wise minimums over the K core
     slices, which XLA fuses into single passes (``argmin`` over the disparity axis, a reduction
-    over a major axis, measured 6x slower on CPU). For the right view the block's minimum is
-    taken in block coordinates ``u = x_r + first`` with static shifts, then moved to right-image
-    coordinates with one dynamic shift. Ties keep the smaller disparity, as ``argmin`` does.
+    over a major axis, measured 6x slower on CPU); the right view by :func:`fold_right_view`.
+    Ties keep the smaller disparity, as ``argmin`` does.
     ``slices[0]`` and ``slices[-1]`` are a halo, used only for ``before``/``after``.
 
     The runner-up ``second`` needs the slices in increasing disparity over successive calls
@@ -119,8 +118,6 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
         for k, plane in enumerate(planes)
     ]
     s = state
-    block_cost = jnp.full((height, width), jnp.inf, jnp.float32)
-    block_index = jnp.zeros((height, width), jnp.int32)
     for k in range(1, count + 1):
         cost = planes[k]
         better = cost < s.cost
@@ -134,21 +131,66 @@ def fold_winners(state: Winners, slices, first, *, limit) -> Winners:
             before=jnp.where(better, planes[k - 1], s.before),
             after=jnp.where(better, planes[k + 1], s.after),
         )
-        # Right view in block coordinates: C(u + (k - 1), first + k - 1) at u = x_r + first.
-        shifted = jnp.pad(cost[:, k - 1 :], ((0, 0), (0, k - 1)), constant_values=jnp.inf)
-        right_better = shifted < block_cost
-        block_cost = jnp.where(right_better, shifted, block_cost)
-        block_index = jnp.where(right_better, k - 1, block_index)
+    right_disparity, right_cost = fold_right_view(s.right_disparity, s.right_cost,
+                                                  planes[1:-1], first)
+    return s._replace(right_disparity=right_disparity, right_cost=right_cost)
+
+
+def fold_right_view(disparity: jax.Array, cost: jax.Array, planes, first
+                    ) -> tuple[jax.Array, jax.Array]:
+    """Fold left-view cost slices ``first .. first + K - 1`` into the right view's running
+    winner-takes-all, ``C_R(x_r, d) = C(x_r + d, d)``.
+
+    The block's minimum is taken in block coordinates ``u = x_r + first`` with static shifts,
+    then moved to right-image coordinates with one dynamic shift (one per block, not per
+    slice). Ties keep the smaller disparity.
+
+    Parameters
+    ----------
+    disparity : int32 (H, W)
+        The right view's best disparity so far (:func:`no_winners` gives the start).
+    cost : (H, W), the planes' dtype
+        Its cost (``+inf``, or an integer dtype's largest value, before any slice).
+    planes : sequence of K (H, W) arrays of one real or integer dtype
+        Left-view cost at disparities ``first .. first + K - 1``, the worst value (``+inf``,
+        an integer dtype's largest) where a disparity must not count; a disparity that only
+        ties with the worst value may then win over none, as the smaller one.
+    first : int or int32 scalar
+        Disparity of ``planes[0]`` (traced values are fine).
+
+    Returns
+    -------
+    (int32 (H, W), (H, W) of the planes' dtype): the updated disparity and cost.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> left = [jnp.array([[5., 0., 5., 5.]]), jnp.array([[5., 5., 0., 5.]])]  # d = 0, 1
+    >>> d, c = fold_right_view(jnp.zeros((1, 4), jnp.int32), jnp.full((1, 4), jnp.inf), left, 0)
+    >>> d.tolist()  # right x = 1 matches left x = 1 (d = 0) and left x = 2 (d = 1): tie -> 0
+    [[0, 0, 0, 0]]
+    """
+    height, width = planes[0].shape
+    dtype = planes[0].dtype
+    # The worst cost of the dtype: +inf, or an integer volume's largest value.
+    worst = jnp.inf if jnp.issubdtype(dtype, jnp.floating) else jnp.iinfo(dtype).max
+    block_cost = jnp.full((height, width), worst, dtype)
+    block_index = jnp.zeros((height, width), jnp.int32)
+    for k, plane in enumerate(planes):
+        # C(u + k, first + k) at u = x_r + first.
+        shifted = jnp.pad(plane[:, k:], ((0, 0), (0, k)), constant_values=worst)
+        better = shifted < block_cost
+        block_cost = jnp.where(better, shifted, block_cost)
+        block_index = jnp.where(better, k, block_index)
     # To right-image coordinates: x_r = u - first, so read column x_r + first.
     start = jnp.clip(first, 0, width)
-    cost = lax.dynamic_slice_in_dim(
-        jnp.pad(block_cost, ((0, 0), (0, width)), constant_values=jnp.inf), start, width, axis=1)
-    index = lax.dynamic_slice_in_dim(jnp.pad(block_index, ((0, 0), (0, width))), start, width, axis=1)
-    right_better = cost < s.right_cost
-    return s._replace(
-        right_disparity=jnp.where(right_better, first + index, s.right_disparity).astype(jnp.int32),
-        right_cost=jnp.where(right_better, cost, s.right_cost),
-    )
+    moved = lax.dynamic_slice_in_dim(
+        jnp.pad(block_cost, ((0, 0), (0, width)), constant_values=worst), start, width, axis=1)
+    index = lax.dynamic_slice_in_dim(jnp.pad(block_index, ((0, 0), (0, width))), start, width,
+                                     axis=1)
+    better = moved < cost
+    return (jnp.where(better, first + index, disparity).astype(jnp.int32),
+            jnp.where(better, moved, cost))
 
 
 def subpixel_parabola(cost: jax.Array, disparity: jax.Array) -> jax.Array:

@@ -1,12 +1,12 @@
-"""Tests for sswjax.stages.fill: the guided weighted median against a brute-force NumPy one."""
+"""Tests for sswjax.stages.fill: the guided weighted median and the vote against brute-force NumPy."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.fill import weighted_median_fill
-from sswjax.stages.refinement import fill_background
+from sswjax.stages.fill import vote_fill, weighted_median_fill
+from sswjax.stages.refinement import fill_background, fill_invalid
 
 
 def guided_kernel_reference(guide, r, eps):
@@ -192,3 +192,100 @@ def test_cli_bad_fill_parameters(small_pair, tmp_path, run_cli, content, message
                             "--ndisp", 8, "-o", tmp_path / "d.pfm", "--params", params])
     assert code == 2 and err.startswith("sswjax: error: ") and err.count("\n") == 1, err
     assert message in err and not (tmp_path / "d.pfm").exists()
+
+
+def vote_reference(disparity, valid, guide, median_radius, radius, step, sigma, tolerance):
+    """Loops: each invalid pixel's candidates (median fill, nearest valid left and right on
+    the row) and their votes over the clamped sampled window."""
+    filled = np.asarray(fill_invalid(jnp.asarray(disparity), jnp.asarray(valid),
+                                     radius=median_radius, left_band=True, median="separable"))
+    intensity = guide.mean(-1)
+    height, width = disparity.shape
+    reach = radius // step * step
+    out = disparity.astype(np.float32).copy()
+    for y, x in zip(*np.nonzero(~valid)):
+        left = [disparity[y, i] for i in range(x) if valid[y, i]]
+        right = [disparity[y, i] for i in range(x + 1, width) if valid[y, i]]
+        candidates = [filled[y, x], left[-1] if left else filled[y, x],
+                      right[0] if right else filled[y, x]]
+        support = [0.0, 0.0, 0.0]
+        for dy in range(-reach, reach + 1, step):
+            for dx in range(-reach, reach + 1, step):
+                q = (min(max(y + dy, 0), height - 1), min(max(x + dx, 0), width - 1))
+                weight = 1 / (1 + 3 * abs(intensity[q] - intensity[y, x]) / sigma)
+                for k, c in enumerate(candidates):
+                    if abs(filled[q] - c) <= tolerance:
+                        support[k] += weight
+        best = 0
+        for k in (1, 2):
+            if support[k] > support[best] + 1e-5:
+                best = k
+        out[y, x] = candidates[best]
+    return out
+
+
+@pytest.mark.parametrize("radius, step, tolerance", [(2, 1, 0.5), (4, 2, 1.0), (5, 4, 2.0)])
+def test_vote_fill_matches_brute_force(radius, step, tolerance):
+    rng = np.random.default_rng(radius)
+    disparity = np.repeat(np.array([2.0] * 7 + [9.0] * 7, np.float32)[None], 9, axis=0)
+    disparity += rng.integers(-1, 2, disparity.shape)
+    valid = rng.random(disparity.shape) < 0.55
+    guide = np.where(disparity[..., None] > 5, 0.8, 0.2) + 0.05 * rng.random((9, 14, 3))
+    guide = guide.astype(np.float32)
+    ours = np.asarray(vote_fill(jnp.asarray(disparity), jnp.asarray(valid), guide=jnp.asarray(guide),
+                                median_radius=1, radius=radius, step=step, sigma=0.2,
+                                tolerance=tolerance))
+    expected = vote_reference(disparity, valid, guide, 1, radius, step, 0.2, tolerance)
+    np.testing.assert_allclose(ours, expected, atol=1e-6)
+
+
+def test_vote_fill_follows_the_colour_across_a_rejected_band():
+    # Columns 3-4 rejected between surfaces 1 (dark) and 5 (bright); column 3 is dark. The
+    # left-band fill gives both 5 (x < 5: the bright surface has no match there), the vote
+    # gives column 3 the dark surface's 1.
+    d = jnp.array([[1., 1., 1., 0., 0., 5., 5., 5.]] * 5)
+    guide = jnp.array([[0., 0., 0., 0., 1., 1., 1., 1.]] * 5)
+    background = fill_invalid(d, d > 0, radius=0, left_band=True)
+    assert background[2].tolist() == [1, 1, 1, 5, 5, 5, 5, 5]
+    voted = vote_fill(d, d > 0, guide=guide, median_radius=0, radius=2, step=1)
+    assert voted[2].tolist() == [1, 1, 1, 1, 5, 5, 5, 5]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(radius=0), "radius must be an integer >= 1"),
+    (dict(step=0), "step must be an integer >= 1"),
+    (dict(sigma=0.0), "sigma must be > 0"),
+    (dict(tolerance=-1.0), "tolerance must be >= 0"),
+    (dict(guide=jnp.zeros((3, 4, 2))), "guide"),
+])
+def test_vote_fill_bad_arguments(kwargs, message):
+    kwargs = {"guide": jnp.zeros((4, 5)), "median_radius": 1, **kwargs}
+    with pytest.raises(ValueError, match=message):
+        vote_fill(jnp.zeros((4, 5)), jnp.ones((4, 5), bool), **kwargs)
+
+
+def test_vote_registry_entry():
+    from sswjax import registry
+    from sswjax.params import params_from_dict
+
+    entry = registry.FILLS["vote"]
+    assert entry.uses_guide and not entry.uses_segments
+    params = params_from_dict({"fill": "vote", "fill_weight_radius": 3, "vote_step": 2,
+                               "vote_sigma": 0.1, "vote_tolerance": 1.0, "fill_radius": 2,
+                               "fill_median": "separable", "fill_band_fit": 4})
+    _, disparity, valid = _random_case(9)
+    guide = np.random.default_rng(10).random(disparity.shape + (3,)).astype(np.float32)
+    out = jax.jit(lambda d, v, g, p: entry.fn(d, v, labels=None, num_segments=0, params=p,
+                                              guide=g))(jnp.asarray(disparity), jnp.asarray(valid),
+                                                        jnp.asarray(guide), params)
+    direct = vote_fill(jnp.asarray(disparity), jnp.asarray(valid), guide=jnp.asarray(guide),
+                       median_radius=2, radius=3, step=2, sigma=0.1, tolerance=1.0, band_fit=4)
+    np.testing.assert_allclose(np.asarray(out), np.asarray(direct), atol=1e-6)
+    with pytest.raises(ValueError, match="needs the left image"):
+        entry.fn(jnp.asarray(disparity), jnp.asarray(valid), labels=None, num_segments=0,
+                 params=params)
+    for bad, message in [({"vote_step": 0}, "vote_step must be in"),
+                         ({"vote_sigma": 0}, "vote_sigma must be a finite number > 0"),
+                         ({"vote_tolerance": -1}, "vote_tolerance must be a finite number >= 0")]:
+        with pytest.raises(ValueError, match=message):
+            params_from_dict(bad)
