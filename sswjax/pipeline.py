@@ -350,7 +350,8 @@ def ssw_disparity(
 class SSWOutputs(NamedTuple):
     """What :func:`ssw_outputs` returns, all ``(H, W)``: the dense disparity (float32, as
     :func:`ssw_disparity`), its confidence (float32 in [0, 1], higher = more reliable) and the
-    pixels the left-right check rejected and filled (bool)."""
+    pixels the left-right check (with the uniqueness and aggregated-view tests when on)
+    rejected and filled (bool)."""
 
     disparity: jax.Array
     confidence: jax.Array

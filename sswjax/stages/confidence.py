@@ -13,8 +13,9 @@ The cues (:class:`ConfidenceCues`) come out of the running winner-takes-all fold
   ``+inf`` where ``x - d_L(x) < 0`` (no pixel of the right image to compare with;
   :func:`~sswjax.stages.refinement.left_right_distance`, what the left-right check thresholds);
 - ``initial``: the winner with its sub-pixel parabola, before filling and the median;
-- ``lr_failed``: the pixels the left-right check rejected (then filled); all False when the
-  check is off.
+- ``lr_failed``: the pixels the left-right check rejected (then filled), with those the
+  uniqueness and aggregated-view tests add (``Params.uniqueness_gap``,
+  ``aggregated_lr_gap``); all False when the check is off.
 
 The measures (:data:`MEASURES`) turn them into a confidence in [0, 1]:
 
