@@ -30,7 +30,7 @@ from jax import lax
 
 from sswjax._checks import check_floating, check_rank, check_same_shape
 from sswjax.stages.baselines import _box_mean, _check_guide, _check_positive, _guided_filter_fn
-from sswjax.stages.refinement import fill_background, fill_invalid
+from sswjax.stages.refinement import fill_background, fill_invalid, nearest_valid
 
 SOURCES = ("filled", "valid")
 """What the histogram counts: every pixel of the background-filled map, or the valid ones."""
@@ -147,20 +147,6 @@ def weighted_median_fill(
     return jnp.where(valid | ~usable, filled, median)
 
 
-def _nearest_valid(disparity: jax.Array, valid: jax.Array, *, reverse: bool) -> tuple[jax.Array, jax.Array]:
-    """The disparity of the nearest valid pixel to the left (right with ``reverse``) on each
-    row, and whether there is one: float32 (H, W), bool (H, W)."""
-    width = disparity.shape[1]
-    columns = jnp.broadcast_to(jnp.arange(width), disparity.shape)
-    if reverse:
-        index = lax.cummin(jnp.where(valid, columns, width), axis=1, reverse=True)
-        found = index < width
-    else:
-        index = lax.cummax(jnp.where(valid, columns, -1), axis=1)
-        found = index >= 0
-    return jnp.take_along_axis(disparity, jnp.clip(index, 0, width - 1), axis=1), found
-
-
 def vote_fill(
     disparity: jax.Array,
     valid: jax.Array,
@@ -237,10 +223,8 @@ def vote_fill(
     disparity = disparity.astype(jnp.float32)
     filled = fill_invalid(disparity, valid, radius=median_radius, left_band=True, median=median,
                           band_fit=band_fit)
-    candidates = [filled]
-    for reverse in (False, True):
-        nearest, found = _nearest_valid(disparity, valid, reverse=reverse)
-        candidates.append(jnp.where(found, nearest, filled))
+    candidates = [filled, *(jnp.where(jnp.isfinite(side), side, filled)
+                             for side in nearest_valid(disparity, valid))]
     intensity = guide.mean(axis=-1) if guide.ndim == 3 else guide
     reach = (radius // step) * step
     height, width = disparity.shape

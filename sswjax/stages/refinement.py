@@ -163,6 +163,29 @@ def uniqueness_violations(disparity: jax.Array, cost: jax.Array, *, gap: int) ->
     return (cost > best_at) & (jnp.abs(winner_at - disparity) >= gap) & (winner_at >= 0)
 
 
+def nearest_valid(disparity: jax.Array, valid: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The disparities of the nearest valid pixels to the left and to the right on each row
+    (a pixel's own where it is valid); ``+inf`` where a side has none.
+
+    Parameters
+    ----------
+    disparity : float32 (H, W)
+    valid : bool (H, W)
+
+    Returns
+    -------
+    (float32 (H, W), float32 (H, W)): from the left, from the right.
+    """
+    width = disparity.shape[1]
+    columns = jnp.broadcast_to(jnp.arange(width), disparity.shape)
+    last_valid_left = lax.cummax(jnp.where(valid, columns, -1), axis=1)
+    next_valid_right = lax.cummin(jnp.where(valid, columns, width), axis=1, reverse=True)
+    from_left = jnp.take_along_axis(disparity, jnp.clip(last_valid_left, 0, width - 1), axis=1)
+    from_right = jnp.take_along_axis(disparity, jnp.clip(next_valid_right, 0, width - 1), axis=1)
+    return (jnp.where(last_valid_left >= 0, from_left, jnp.inf),
+            jnp.where(next_valid_right < width, from_right, jnp.inf))
+
+
 def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool = False,
                     band_fit: int = 0) -> jax.Array:
     """Give each invalid pixel the smaller of the nearest valid disparities left and right of it.
@@ -201,14 +224,8 @@ def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool =
     check_rank("disparity", disparity, 2)
     check_floating("disparity", disparity)
     check_same_shape("disparity", disparity, "valid", valid)
-    width = disparity.shape[1]
-    columns = jnp.broadcast_to(jnp.arange(width), disparity.shape)
-    last_valid_left = lax.cummax(jnp.where(valid, columns, -1), axis=1)
-    next_valid_right = lax.cummin(jnp.where(valid, columns, width), axis=1, reverse=True)
-    from_left = jnp.take_along_axis(disparity, jnp.clip(last_valid_left, 0, width - 1), axis=1)
-    from_right = jnp.take_along_axis(disparity, jnp.clip(next_valid_right, 0, width - 1), axis=1)
-    from_left = jnp.where(last_valid_left >= 0, from_left, jnp.inf)
-    from_right = jnp.where(next_valid_right < width, from_right, jnp.inf)
+    columns = jnp.arange(disparity.shape[1])[None, :]
+    from_left, from_right = nearest_valid(disparity, valid)
     fill = jnp.minimum(from_left, from_right)
     if left_band:
         fill = jnp.where(jnp.isfinite(from_right) & (columns < from_right), from_right, fill)
