@@ -54,3 +54,23 @@ def check_map(name: str, x, radius: int) -> None:
     check_rank(name, x, range(2, 6))
     check_floating(name, x)
     check_positive_int("radius", radius)
+
+
+def check_guide(guide, x, *, channels: tuple[int, ...] | None = None) -> None:
+    """Guide: floating (H, W, C) or (H, W), spatial size of ``x``, optionally C in ``channels``."""
+    check_rank("guide", guide, (2, 3))
+    check_floating("guide", guide)
+    if tuple(guide.shape[:2]) != tuple(x.shape[-2:]):
+        raise ValueError(
+            f"guide size {tuple(guide.shape[:2])} differs from x size {tuple(x.shape[-2:])}"
+        )
+    num_channels = guide.shape[2] if guide.ndim == 3 else 1
+    if channels is not None and num_channels not in channels:
+        want = " or ".join(str(c) for c in channels)
+        raise ValueError(f"guide must have {want} channels, got shape {tuple(guide.shape)}")
+
+
+def check_positive(name: str, value) -> None:
+    """Reject non-positive Python numbers; traced or array values pass unchecked."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and not value > 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")

@@ -1,21 +1,27 @@
 """The algorithm's stages, one module per stage, each a family of pure functions on arrays.
 
-Data flows through them in this order (``sswjax.pipeline`` composes them into one jitted graph):
+Data flows through them in this order (:mod:`sswjax.graph` composes them into one jitted graph;
+the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the tests' oracles):
 
-===============  =================================================================================
-``color``        colour conversions: sRGB to CIELAB (for SLIC), BT.601 luma
-``preprocess``   pre-processing of the images the cost sees (local contrast normalisation)
-``cost``         matching cost: TAD, Sobel gradient, census; the cost slices (Eq. 1-5)
-``segments``     SLIC superpixels and segment means (Eq. 6)
-``filters``      side-window box and median filters, sorting-network medians
-``aggregation``  segment-side-window aggregation (Eq. 7)
-``baselines``    the baseline aggregators (box, BF, GF, iGF, MF)
-``sgm``          semi-global optimisation of the aggregated volume (Hirschmuller 2008)
-``selection``    winner-takes-all, the running fold of both views, sub-pixel, soft-argmin (Eq. 8)
-``refinement``   left-right check and filling (Eq. 9)
-``fill``         guided weighted-median fill of the rejected pixels (Eq. 9, weighted)
-``confidence``   confidence measures and validity bits from the fold's cues and the refinement
-``planes``       robust plane per superpixel, filling the pixels it supports
-``pyramid``      halving and doubling of images and volumes (half-resolution SGM)
-===============  =================================================================================
+================  ================================================================================
+``color``         colour conversions: sRGB to CIELAB (for SLIC), BT.601 luma
+``preprocess``    pre-processing of the images the cost sees (local contrast normalisation)
+``cost``          matching cost: TAD, Sobel gradient, census; the cost slices (Eq. 1-5)
+``segments``      SLIC superpixels and segment means (Eq. 6)
+``filters``       side-window box filters (Yin et al. 2019)
+``medians``       sorting-network medians: square, separable, side-window
+``aggregation``   segment-side-window aggregation (Eq. 7)
+``baselines``     the baseline aggregators box, BF and MF, and the box means they share
+``guided``        the guided filter and its iterated form (GF, iGF)
+``quantisation``  the cost stored in int16 / uint8 levels for the paths, and their sums read back
+``sgm``           semi-global optimisation of the aggregated volume (Hirschmuller 2008)
+``selection``     the running fold of both views' winners, sub-pixel, soft-argmin (Eq. 8)
+``refinement``    the left-right distance, uniqueness test and background filling (Eq. 9)
+``fill``          guided weighted-median and vote fills of the rejected pixels (Eq. 9, weighted)
+``confidence``    confidence measures and validity bits from the fold's cues and the refinement
+``planes``        robust plane per superpixel, filling the pixels it supports
+``pyramid``       halving and doubling of images and volumes (half-resolution SGM)
+``upsampling``    the coarse map doubled back, guided by the fine image (coarse-to-fine)
+``reference``     direct whole-volume versions the tests check the live stages against
+================  ================================================================================
 """

@@ -10,7 +10,7 @@ segment-level cost: ``S(p, d)`` = mean of ``C(., d)`` over the superpixel of ``p
 input is ``C + lambda * S`` (blended before filtering), and ``w(p, q)`` is the uniform weight of
 the side-window box filter. The window is chosen independently on every cost slice (default) or
 once per pixel on the guide image, shared by all disparities; on trainingQ the per-slice choice
-measured better once the segment term is in (see the README's design notes).
+measured better once the segment term is in (``docs/reading-the-paper.md``).
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ The cues (:class:`ConfidenceCues`) come out of the running winner-takes-all fold
   :func:`~sswjax.stages.refinement.left_right_distance`, what the left-right check thresholds);
 - ``initial``: the winner with its sub-pixel parabola, before filling and the median;
 - ``lr_failed``: the pixels the left-right check rejected (then filled), with those the
-  uniqueness and aggregated-view tests add (``Params.uniqueness_gap``,
-  ``aggregated_lr_gap``); all False when the check is off.
+  uniqueness and aggregated-view tests add (``checks.uniqueness_gap``,
+  ``checks.aggregated_gap``); all False when the check is off.
 
 The measures (:data:`MEASURES`) turn them into a confidence in [0, 1]:
 
@@ -25,7 +25,7 @@ The measures (:data:`MEASURES`) turn them into a confidence in [0, 1]:
 ``lr``          ``1 / (1 + lr_distance)``: 1 when both views agree, 0 without a match
 ``agreement``   ``1 / (1 + |d - initial|)``: how much filling and the median moved the winner
 ``combined``    the product of the three (the default, the best of the sparsification curves
-                in ``benchmarks/sparsification.py``: README, "Confidence and validity")
+                in ``benchmarks/sparsification.py``: ``docs/confidence.md``)
 ==============  ===================================================================================
 
 Validity bits (:func:`validity_mask`; 0 = valid):
@@ -55,7 +55,7 @@ LOW_CONFIDENCE = 4
 
 DEFAULT_MEASURE = "combined"
 DEFAULT_THRESHOLD = 0.05
-"""Default low-confidence threshold (bit 2): see the README's "Confidence and validity"."""
+"""Default low-confidence threshold (bit 2): see ``docs/confidence.md``."""
 
 
 class ConfidenceCues(NamedTuple):
@@ -177,7 +177,7 @@ def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
     if not 0.0 <= float(threshold) <= 1.0:
         raise ValueError(f"low-confidence threshold must be in [0, 1], got {threshold}")
     columns = jnp.arange(disparity.shape[1], dtype=jnp.float32)[None, :]
-    # Negative ranges (sswjax.ranges) can point right of the right image too.
+    # Negative ranges (sswjax.api.ranges) can point right of the right image too.
     band = (columns - disparity < 0) | (columns - disparity > disparity.shape[1] - 1)
     bits = (jnp.where(lr_failed, LR_FAILED, 0) | jnp.where(band, LEFT_BAND, 0)
             | jnp.where(confidence < threshold, LOW_CONFIDENCE, 0))

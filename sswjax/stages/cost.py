@@ -31,7 +31,7 @@ from sswjax.stages.color import rgb_to_gray
 _WORD_BITS = 32
 
 
-def _check_image(name: str, image) -> None:
+def check_image(name: str, image) -> None:
     check_rank(name, image, 3)
     check_floating(name, image)
     if image.shape[-1] not in (1, 3):
@@ -40,7 +40,7 @@ def _check_image(name: str, image) -> None:
 
 def to_gray(image: jax.Array) -> jax.Array:
     """Gray image ``(H, W)`` of an ``(H, W, C)`` image, C in {1, 3} (BT.601 luma for colour)."""
-    _check_image("image", image)
+    check_image("image", image)
     return image[..., 0] if image.shape[-1] == 1 else rgb_to_gray(image)
 
 
@@ -179,8 +179,8 @@ def matching_features(
     -------
     MatchingFeatures
     """
-    _check_image("left", left)
-    _check_image("right", right)
+    check_image("left", left)
+    check_image("right", right)
     check_same_shape("left", left, "right", right)
     gray_l, gray_r = to_gray(left), to_gray(right)
     return MatchingFeatures(
@@ -322,64 +322,3 @@ def matching_cost(
     return jax.vmap(cost_slice)(first + jnp.arange(count)).astype(jnp.float32)
 
 
-def cost_volume(
-    left: jax.Array,
-    right: jax.Array,
-    *,
-    ndisp: int,
-    tad_weight,
-    gradient_weight,
-    census_weight,
-    tad_truncation,
-    gradient_truncation,
-    census_height: int = 7,
-    census_width: int = 9,
-) -> jax.Array:
-    """Combined matching cost ``C(p, d)`` of Eq. (5) for d = 0 .. ndisp-1.
-
-    ``C = alpha * min(TAD, tau_c) / tau_c + beta * min(GM, tau_g) / tau_g + gamma * CT / n_bits``
-    where TAD (Eq. 2) is the channel mean of ``|I_L(p) - I_R(p - d)|``, GM (Eq. 3) the absolute
-    difference of Sobel gradient magnitudes, truncated too (an untruncated GM lets outliers
-    dominate), and CT (Eq. 4) the Hamming distance of census codes (:func:`matching_features`
-    then :func:`matching_cost`).
-
-    Parameters
-    ----------
-    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
-    ndisp : int
-        Number of disparities, 1 <= ndisp <= W.
-    tad_weight, gradient_weight, census_weight : float or scalar array
-        alpha, beta, gamma.
-    tad_truncation, gradient_truncation : float or scalar array, > 0
-        tau_c and tau_g, in intensity units.
-    census_height, census_width : int, odd
-        Census window.
-
-    Returns
-    -------
-    float32 (ndisp, H, W), values in [0, alpha + beta + gamma]
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> img = jnp.linspace(0, 1, 4 * 16 * 3).reshape(4, 16, 3)
-    >>> c = cost_volume(img, img, ndisp=3, tad_weight=1., gradient_weight=1., census_weight=1.,
-    ...                 tad_truncation=0.1, gradient_truncation=0.1)
-    >>> c.shape, float(c[0].max())
-    ((3, 4, 16), 0.0)
-    """
-    _check_image("left", left)
-    check_positive_int("ndisp", ndisp)
-    if ndisp > left.shape[1]:
-        raise ValueError(f"ndisp must be <= image width {left.shape[1]}, got {ndisp}")
-    features = matching_features(left, right, census_height=census_height, census_width=census_width)
-    return matching_cost(
-        features,
-        0,
-        ndisp,
-        tad_weight=tad_weight,
-        gradient_weight=gradient_weight,
-        census_weight=census_weight,
-        tad_truncation=tad_truncation,
-        gradient_truncation=gradient_truncation,
-    )

@@ -29,7 +29,9 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_rank, check_same_shape
-from sswjax.stages.baselines import _box_mean, _check_guide, _check_positive, _guided_filter_fn
+from sswjax._checks import check_guide, check_positive
+from sswjax.stages.baselines import box_mean
+from sswjax.stages.guided import guided_filter_fn
 from sswjax.stages.refinement import fill_background, fill_invalid, nearest_valid
 
 SOURCES = ("filled", "valid")
@@ -106,15 +108,15 @@ def weighted_median_fill(
         raise ValueError(f"radius must be an integer >= 1, got {radius!r}")
     if source not in SOURCES:
         raise ValueError(f"source must be one of {SOURCES}, got {source!r}")
-    _check_positive("eps", eps)
+    check_positive("eps", eps)
     if isinstance(quantile, (int, float)) and not 0 < quantile <= 1:
         raise ValueError(f"quantile must be in (0, 1], got {quantile!r}")
     if guide is None:
         def smooth(p):
-            return _box_mean(p, radius)
+            return box_mean(p, radius)
     else:
-        _check_guide(guide, disparity, channels=(1, 3))
-        smooth = _guided_filter_fn(guide, radius, eps)
+        check_guide(guide, disparity, channels=(1, 3))
+        smooth = guided_filter_fn(guide, radius, eps)
 
     filled = fill_background(disparity.astype(jnp.float32), valid, left_band=left_band,
                              band_fit=band_fit)
@@ -213,11 +215,11 @@ def vote_fill(
     check_rank("disparity", disparity, 2)
     check_floating("disparity", disparity)
     check_same_shape("disparity", disparity, "valid", valid)
-    _check_guide(guide, disparity, channels=(1, 3))
+    check_guide(guide, disparity, channels=(1, 3))
     for name, value in (("radius", radius), ("step", step)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    _check_positive("sigma", sigma)
+    check_positive("sigma", sigma)
     if isinstance(tolerance, (int, float)) and tolerance < 0:
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
     disparity = disparity.astype(jnp.float32)

@@ -18,42 +18,12 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_rank, check_same_shape
-from sswjax.stages.filters import median_filter, separable_median_filter
+from sswjax.stages.medians import median_filter, separable_median_filter
 
 MEDIANS = {"square": median_filter, "separable": separable_median_filter}
 """The median of :func:`fill_invalid`: over the ``(2r+1)^2`` square (exact), or the separable
 approximation (the median of the column medians: two ``2r + 1``-input sorting networks instead
 of one ``(2r+1)^2``-input network)."""
-
-
-def right_cost_volume(cost: jax.Array, *, disparities: jax.Array | None = None) -> jax.Array:
-    """The right view's cost volume from the left one: ``C_R[d, y, x] = C_L[d, y, x + d]``.
-
-    Where ``x + d >= W`` no left pixel matches and the cost is ``+inf``.
-
-    Parameters
-    ----------
-    cost : float32 (K, H, W)
-        Left-view cost slices.
-    disparities : int32 (K,), optional
-        The disparity of each slice (traced values are fine); default ``arange(K)``.
-
-    Returns
-    -------
-    float32 (K, H, W)
-    """
-    check_rank("cost", cost, 3)
-    check_floating("cost", cost)
-    count, _, width = cost.shape
-    if disparities is None:
-        disparities = jnp.arange(count)
-    check_rank("disparities", disparities, 1)
-    padded = jnp.pad(cost, ((0, 0), (0, 0), (0, width)), constant_values=jnp.inf)
-
-    def shift_left(slice_, d):
-        return lax.dynamic_slice_in_dim(slice_, jnp.clip(d, 0, width), width, axis=1)
-
-    return jax.vmap(shift_left)(padded, disparities)
 
 
 def left_right_distance(left_disparity: jax.Array, right_disparity: jax.Array) -> jax.Array:
@@ -81,31 +51,6 @@ def left_right_distance(left_disparity: jax.Array, right_disparity: jax.Array) -
     matched = jnp.take_along_axis(right_disparity, jnp.clip(target, 0, width - 1), axis=1)
     distance = jnp.abs(left_disparity.astype(jnp.float32) - matched.astype(jnp.float32))
     return jnp.where(target >= 0, distance, jnp.inf)
-
-
-def left_right_consistency(
-    left_disparity: jax.Array, right_disparity: jax.Array, *, tolerance
-) -> jax.Array:
-    """Left-right check: ``|d_L(x) - d_R(x - round(d_L(x)))| <= tolerance`` and ``x - d_L >= 0``.
-
-    Parameters
-    ----------
-    left_disparity, right_disparity : float32 or int32 (H, W)
-    tolerance : float >= 0, pixels
-
-    Returns
-    -------
-    bool (H, W), True where the left disparity is confirmed.
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> dl = jnp.array([[0, 1, 1, 1]])
-    >>> dr = jnp.array([[1, 1, 3, 0]])
-    >>> left_right_consistency(dl, dr, tolerance=0).tolist()
-    [[False, True, True, False]]
-    """
-    return left_right_distance(left_disparity, right_disparity) <= tolerance
 
 
 def uniqueness_violations(disparity: jax.Array, cost: jax.Array, *, gap: int) -> jax.Array:

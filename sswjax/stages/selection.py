@@ -15,29 +15,6 @@ from jax import lax
 from sswjax._checks import check_floating, check_rank
 
 
-def winner_takes_all(cost: jax.Array) -> jax.Array:
-    """Eq. (8): ``argmin_d cost[d, y, x]`` (the smallest d on ties).
-
-    Parameters
-    ----------
-    cost : float32 (D, H, W)
-
-    Returns
-    -------
-    int32 (H, W), in [0, D)
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> c = jnp.stack([jnp.full((2, 2), 3.0), jnp.ones((2, 2)), jnp.full((2, 2), 2.0)])
-    >>> winner_takes_all(c).tolist()
-    [[1, 1], [1, 1]]
-    """
-    check_rank("cost", cost, 3)
-    check_floating("cost", cost)
-    return jnp.argmin(cost, axis=0).astype(jnp.int32)
-
-
 class Winners(NamedTuple):
     """Running winner-takes-all state of both views over disparity slices (all arrays (H, W)).
 
@@ -191,41 +168,6 @@ def fold_right_view(disparity: jax.Array, cost: jax.Array, planes, first
     better = moved < cost
     return (jnp.where(better, first + index, disparity).astype(jnp.int32),
             jnp.where(better, moved, cost))
-
-
-def subpixel_parabola(cost: jax.Array, disparity: jax.Array) -> jax.Array:
-    """Sub-pixel disparity by a parabola through the costs at ``d-1, d, d+1``.
-
-    ``d + (c[d-1] - c[d+1]) / (2 (c[d-1] - 2 c[d] + c[d+1]))``, the offset clipped to
-    [-0.5, 0.5]; at the ends of the range or for a flat/concave fit the offset is 0.
-
-    Parameters
-    ----------
-    cost : float32 (D, H, W)
-    disparity : int32 (H, W), the WTA winners
-
-    Returns
-    -------
-    float32 (H, W)
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> d = jnp.arange(5.0)[:, None, None]
-    >>> c = (d - 2.25) ** 2 * jnp.ones((5, 1, 1))        # minimum at 2.25
-    >>> float(subpixel_parabola(c, winner_takes_all(c))[0, 0])
-    2.25
-    """
-    check_rank("cost", cost, 3)
-    check_floating("cost", cost)
-    check_rank("disparity", disparity, 2)
-    ndisp = cost.shape[0]
-
-    def at(offset):
-        index = jnp.clip(disparity + offset, 0, ndisp - 1)[None]
-        return jnp.take_along_axis(cost, index, axis=0)[0]
-
-    return parabola_refine(disparity, at(-1), at(0), at(1), ndisp=ndisp)
 
 
 def parabola_refine(disparity, before, centre, after, *, ndisp: int) -> jax.Array:

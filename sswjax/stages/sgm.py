@@ -23,15 +23,15 @@ Paths of one axis run in two loops over that axis, forward then backward, each a
 paths line by line into one loop-carried sum updated in place: over columns for the horizontal
 paths first, on the volume's planes transposed, then over rows for the vertical and diagonal
 ones into that sum, on the volume as it is. A line is a (D, N) slice, D contiguous runs. By
-default (``cost_bound`` given, ``Params.sgm_dtype = "int16"``) the paths run on the cost
+default (``cost_bound`` given, ``SemiGlobal.dtype = "int16"``) the paths run on the cost
 quantised to int16, as OpenCV's SGBM does. :func:`semi_global_sums` returns the sum as the
 scans leave it (:class:`PathSums`, int16), which the selection reads plane by plane, converting
-as it goes; :func:`semi_global` returns it as a float32 volume.
+as it goes; :func:`semi_global` returns it as a float32 volume. How the cost is stored for
+them is :mod:`sswjax.stages.quantisation`.
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -39,55 +39,13 @@ from jax import lax
 
 from sswjax._checks import check_floating, check_rank
 from sswjax.stages.pyramid import double_volume, halve_image, halve_volume
+from sswjax.stages.quantisation import PathSums, as_volume, quantisation, quantise, quantise_cost
 
-__all__ = ["PATH_COUNTS", "SGM_DTYPES", "PathSums", "Quantisation", "as_volume",
-           "half_resolution_semi_global", "path_penalties", "quantisation", "quantise_cost",
-           "semi_global", "semi_global_sums", "sum_planes"]
+__all__ = ["PATH_COUNTS", "half_resolution_semi_global", "path_penalties", "semi_global",
+           "semi_global_sums"]
 
 PATH_COUNTS = (4, 8)
 """Supported numbers of paths."""
-
-SGM_DTYPES = ("int16", "uint8", "float32")
-"""What the paths read and compute in (``Params.sgm_dtype``): ``"int16"`` and ``"uint8"`` the
-cost quantised (``cost_bound`` and ``cost_levels`` of :func:`semi_global_sums`), int16 paths;
-``"float32"`` exact."""
-
-
-class PathSums(NamedTuple):
-    """The sum of the paths as the scans leave it, before any conversion.
-
-    Attributes
-    ----------
-    sums : int16 or float32 (D, H, W)
-    scale : float32 scalar or None
-        Quantisation steps per cost unit of int16 ``sums`` (the cost is ``sums / scale``);
-        ``None`` for float32 sums, which are the cost.
-    """
-
-    sums: jax.Array
-    scale: Any
-
-
-def sum_planes(path_sums: PathSums, disparities) -> list[jax.Array]:
-    """Float32 (H, W) cost planes of ``path_sums`` at ``disparities``, in range: int32 (K,)
-    (gathered), or a sequence of ints (sliced, no copy).
-
-    The conversion happens in the consumer's pass, so the float32 (D, H, W) volume is never
-    written.
-    """
-    sums = path_sums.sums
-    if isinstance(disparities, (list, tuple)):
-        planes = [sums[d] for d in disparities]
-    else:
-        block = jnp.take(sums, disparities, axis=0)
-        planes = [block[k] for k in range(block.shape[0])]
-    return [_dequantise(plane, path_sums.scale) for plane in planes]
-
-
-def as_volume(cost) -> jax.Array:
-    """The float32 (D, H, W) cost volume of a :class:`PathSums` (an array is returned as is)."""
-    return cost if not isinstance(cost, PathSums) else _dequantise(cost.sums, cost.scale)
-
 
 def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
     """``out[y, x] = image[y - dy, x - dx]`` on the last two axes, edge-replicated."""
@@ -339,7 +297,7 @@ def semi_global_sums(
         maps = path_penalties(guide, direction, p1=p1, p2=p2, sigma=sigma, labels=labels,
                               segment_factor=segment_factor)
         if scale is not None:
-            maps = tuple(_quantise(m, scale) for m in maps)
+            maps = tuple(quantise(m, scale) for m in maps)
         return tuple(m.T if transpose else m for m in maps)
 
     # Vertical and diagonal paths along H on the volume as it is, (D, N = W) lines; the
@@ -358,82 +316,6 @@ def semi_global_sums(
     total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
                        levels_step=levels_step)
     return PathSums(total, scale)
-
-
-class Quantisation(NamedTuple):
-    """How a cost volume is stored for the int16 paths (:func:`quantisation`).
-
-    Attributes
-    ----------
-    scale : float32 scalar
-        int16 steps of the paths per cost unit.
-    step : int16 scalar or None
-        int16 steps per stored level (uint8 storage); None: stored in int16 at ``scale``.
-    cap : float scalar
-        The largest cost stored, ``2 * cost_bound``; larger costs are clipped to it.
-    levels : int or None
-        Stored levels above 0 (uint8 storage), or None.
-    """
-
-    scale: Any
-    step: Any
-    cap: Any
-    levels: int | None
-
-
-def quantisation(*, cost_bound, paths: int, p1, p2, cost_levels=None) -> Quantisation:
-    """The storage of a cost volume for :func:`semi_global_sums` with these options.
-
-    The scale is the largest at which no sum of ``paths`` paths can overflow int16,
-    ``(2 ** 15 - 1 - 2 * paths) / (paths * (2 * cost_bound + max(p1, p2)))`` steps per cost
-    unit. With ``cost_levels`` (255) the cost is stored in uint8, ``[0, 2 * cost_bound]`` in
-    that many levels, and a level is the largest whole number of int16 steps that keeps that
-    bound (the scale is rounded down to it).
-
-    Examples
-    --------
-    >>> q = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.8, cost_levels=255)
-    >>> int(q.step), round(float(q.scale), 1)
-    (22, 2805.0)
-    """
-    if cost_levels not in (None, 255):
-        raise ValueError(f"cost_levels must be None or 255, got {cost_levels!r}")
-    cap = 2.0 * cost_bound
-    scale = (jnp.iinfo(jnp.int16).max - 2 * paths) / (paths * (cap + jnp.maximum(p1, p2)))
-    if cost_levels is None:
-        return Quantisation(scale, None, cap, None)
-    step = jnp.floor(scale * cap / cost_levels).astype(jnp.int16)
-    return Quantisation(step * (cost_levels / cap), step, cap, cost_levels)
-
-
-def quantise_cost(cost: jax.Array, quant: Quantisation) -> jax.Array:
-    """A float32 cost (any shape) as :func:`semi_global_sums` stores it: clipped to
-    ``[0, quant.cap]``, int16 at ``quant.scale`` or uint8 in ``quant.levels`` levels.
-
-    Elementwise, so a volume may be stored slice by slice as it is built.
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> q = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.8, cost_levels=255)
-    >>> quantise_cost(jnp.array([-1.0, 0.5, 1.0, 9.0]), q).tolist()
-    [0, 64, 128, 255]
-    """
-    clipped = jnp.clip(cost, 0.0, quant.cap)
-    if quant.levels is None:
-        return _quantise(clipped, quant.scale)
-    return jnp.round(clipped * (quant.levels / quant.cap)).astype(jnp.uint8)
-
-
-def _quantise(values: jax.Array, scale) -> jax.Array:
-    """``round(values * scale)`` as int16 (the caller keeps the result within its range)."""
-    return jnp.round(values * scale).astype(jnp.int16)
-
-
-def _dequantise(values: jax.Array, scale) -> jax.Array:
-    """Cost units of ``values`` quantised by :func:`_quantise` (float32 as is when ``scale`` is
-    None)."""
-    return values if scale is None else values.astype(jnp.float32) / scale
 
 
 def half_resolution_semi_global(

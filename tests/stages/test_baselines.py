@@ -1,4 +1,4 @@
-"""Tests for sswjax.stages.baselines against NumPy references (float64, tiny arrays, plain loops)."""
+"""Tests for sswjax.stages.baselines and sswjax.stages.guided against NumPy references (float64, tiny arrays, plain loops)."""
 
 import functools
 
@@ -7,13 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.baselines import (
-    bilateral_filter,
-    box_filter,
-    guided_filter,
-    iterated_guided_filter,
-    median_cost_filter,
-)
+from sswjax.stages.baselines import bilateral_filter, box_filter, median_cost_filter
+from sswjax.stages.guided import guided_filter, iterated_guided_filter
 
 # ---------------------------------------------------------------------------------------------
 # NumPy references. Leading axes of a map are a batch; windows are (2r+1) x (2r+1), edge padding.

@@ -7,13 +7,13 @@ import pytest
 
 from sswjax.stages.cost import (
     census_transform,
-    cost_volume,
     hamming_distance,
     matching_cost,
     matching_cost_at,
     matching_features,
     sobel_gradient_magnitude,
 )
+from sswjax.stages.reference import cost_volume
 
 LUMA = np.array([0.299, 0.587, 0.114])
 

@@ -1,4 +1,4 @@
-"""Tests for sswjax.stages.filters against brute-force NumPy references (tiny arrays, plain loops)."""
+"""Tests for sswjax.stages.filters and sswjax.stages.medians against brute-force NumPy references (tiny arrays, plain loops)."""
 
 import functools
 
@@ -7,16 +7,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.filters import (
-    median_filter,
-    median_of_stack,
-    select_side_window_mean,
-    separable_median_filter,
-    side_window_box_filter,
-    side_window_index,
-    side_window_means,
-    side_window_median_filter,
-)
+from sswjax.stages.filters import (select_side_window_mean, side_window_box_filter,
+                                  side_window_index, side_window_means)
+from sswjax.stages.medians import (median_filter, median_of_stack, separable_median_filter,
+                                  side_window_median_filter)
 
 # ---------------------------------------------------------------------------------------------
 # NumPy references. A window is (rows, cols) relative to the centre, inclusive ranges.

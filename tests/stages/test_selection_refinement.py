@@ -4,9 +4,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.refinement import (fill_background, fill_invalid, left_right_consistency,
-                                      right_cost_volume, uniqueness_violations)
-from sswjax.stages.selection import fold_winners, no_winners, soft_argmin, subpixel_parabola, winner_takes_all
+from sswjax.stages.reference import (left_right_consistency, right_cost_volume, subpixel_parabola,
+                                     winner_takes_all)
+from sswjax.stages.refinement import fill_background, fill_invalid, uniqueness_violations
+from sswjax.stages.selection import fold_winners, no_winners, soft_argmin
 
 # ---------------------------------------------------------------------------------------------
 # selection

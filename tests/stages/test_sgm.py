@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.pipeline import _fold_volume
-from sswjax.stages.sgm import (as_volume, path_penalties, quantisation, quantise_cost, semi_global,
-                               semi_global_sums, sum_planes)
+from sswjax.graph.volume import fold_volume
+from sswjax.stages.quantisation import as_volume, quantisation, quantise_cost, sum_planes
+from sswjax.stages.sgm import path_penalties, semi_global, semi_global_sums
 
 DIRECTIONS = {4: [(0, 1), (0, -1), (1, 0), (-1, 0)],
               8: [(0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, -1), (-1, 1)]}
@@ -181,7 +181,7 @@ def test_path_sums_read_as_the_volume(cost_bound):
     for plane, d in zip(planes, (3, 0, 6)):
         np.testing.assert_allclose(plane, volume[d], rtol=1e-6)
     for chunk in (0, 3):
-        ours, reference = _fold_volume(sums, 7, chunk), _fold_volume(volume, 7, chunk)
+        ours, reference = fold_volume(sums, 7, chunk), fold_volume(volume, 7, chunk)
         for a, b in zip(ours, reference):   # indices exact, costs to the division's rounding
             np.testing.assert_allclose(a, b, rtol=1e-6)
 
