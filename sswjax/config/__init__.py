@@ -1,0 +1,46 @@
+"""The parameters of the method: one small configuration per stage, composed into ``Params``.
+
+=================  ==============================================================================
+``fields``         ``option(...)``: an option static or traced, its bounds, choices and search
+                   transform; ``stage_config`` makes a class a frozen dataclass and a pytree
+``parts``          the slots (the stages, in pipeline order) and the registry of their parts
+``cost``           pre-processing, the matching cost (Eq. 1-5), the superpixels (Eq. 6)
+``aggregation``    the segment-side-window aggregation (Eq. 7) and the baseline aggregators
+``optimizer``      semi-global optimisation (full and half resolution)
+``selection``      winner-takes-all (Eq. 8) and the checks that reject pixels (Eq. 9)
+``fill``           the fills of the rejected pixels, one class each
+``refinement``     the side-window median and coarse-to-fine
+``params``         ``Params``, the root; ``replace`` by stage, dotted option or old name
+``legacy``         the old flat names (53 fields) and their mapping
+``validate``       checks derived from the options' declarations; rules across stages
+``serialize``      nested JSON, the old flat files
+``presets``        the named compositions and the default
+=================  ==============================================================================
+"""
+
+from sswjax.config.aggregation import (Aggregator, BilateralAggregation, BoxAggregation,
+                                       GuidedAggregation, IteratedGuidedAggregation,
+                                       MedianAggregation, SideWindowAggregation)
+from sswjax.config.cost import LocalContrast, MatchingCost, Preprocessor, Slic
+from sswjax.config.fields import ConfigError, Option, option, stage_config
+from sswjax.config.fill import (BackgroundFill, Fill, LeftBandFill, PlaneFill, VoteFill,
+                                WeightedMedianFill)
+from sswjax.config.optimizer import HalfResolutionSemiGlobal, Optimizer, SemiGlobal
+from sswjax.config.params import Params
+from sswjax.config.parts import SLOTS, Part, kinds, register
+from sswjax.config.presets import DEFAULT_PRESET, PRESETS, default_params, preset
+from sswjax.config.refinement import CoarseToFine, SideWindowMedian
+from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
+from sswjax.config.serialize import load_params, params_from_dict, read_params_file, save_params
+from sswjax.config.validate import check_params
+
+__all__ = [
+    "Aggregator", "BackgroundFill", "BilateralAggregation", "BoxAggregation", "CoarseToFine",
+    "ConfigError", "DEFAULT_PRESET", "Fill", "GuidedAggregation", "HalfResolutionSemiGlobal",
+    "IteratedGuidedAggregation", "LeftBandFill", "LeftRightCheck", "LocalContrast",
+    "MatchingCost", "MedianAggregation", "Optimizer", "Option", "PRESETS", "Params", "Part",
+    "PlaneFill", "Preprocessor", "SLOTS", "SemiGlobal", "SideWindowAggregation",
+    "SideWindowMedian", "Slic", "VoteFill", "WeightedMedianFill", "WinnerTakesAll",
+    "check_params", "default_params", "kinds", "load_params", "option", "params_from_dict",
+    "preset", "read_params_file", "register", "save_params", "stage_config",
+]

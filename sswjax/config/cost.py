@@ -1,0 +1,130 @@
+"""Configurations of the stages before aggregation: pre-processing, matching cost, superpixels.
+
+Array conventions (whole module): images float32 ``(H, W, C)``, C in {1, 3}, values in
+[0, 1]; cost slices float32 ``(D, H, W)``, lower is better; labels int32 ``(H, W)``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from sswjax.config.fields import ConfigError, Sigmoid, Simplex, option
+from sswjax.config.parts import Part, register
+from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_cost_at, matching_features
+from sswjax.stages.preprocess import local_contrast_normalization
+from sswjax.stages.segments import slic, slic_grid_shape
+
+__all__ = ["LocalContrast", "MatchingCost", "Preprocessor", "Slic"]
+
+
+class Preprocessor(Part):
+    """Base of the pre-processors: ``apply(image) -> image`` on each image of the pair before
+    the matching cost (the superpixels and the guides keep the images as given)."""
+
+    def apply(self, image: jax.Array) -> jax.Array:
+        """float32 (H, W, C) in [0, 1] -> the same shape, dtype and range."""
+        raise NotImplementedError
+
+
+@register("preprocess", "lcn")
+class LocalContrast(Preprocessor):
+    """Local contrast normalisation of the images the cost sees (dark, low-contrast pairs)."""
+
+    radius: int = option(7, static=True, low=1, high=50, help="window radius of the local mean "
+                         "and standard deviation")
+    eps: float = option(4 / 255, above=0, help="added to the local standard deviation "
+                        "(intensities in [0, 1])")
+
+    def apply(self, image: jax.Array) -> jax.Array:
+        """:func:`~sswjax.stages.preprocess.local_contrast_normalization`, float32 (H, W, C)."""
+        return local_contrast_normalization(image, radius=self.radius, eps=self.eps)
+
+
+@register("cost", "tad-gradient-census")
+class MatchingCost(Part):
+    """TAD + Sobel gradient + census, each normalised to [0, 1] and weighted (Eq. 1-5).
+
+    The defaults are ``tuning/params/tuned.json``'s: the truncations found by the optax search,
+    the weights set by hand (stored as the search's float32 values).
+    """
+
+    census_height: int = option(7, static=True, low=1, high=15, odd=True,
+                                help="census window height (Eq. 4)")
+    census_width: int = option(9, static=True, low=1, high=15, odd=True,
+                               help="census window width (Eq. 4)")
+    tad_weight: float = option(0.05000000074505806, low=0, search=Simplex("weight_logits"),
+                               help="alpha of Eq. 5: weight of the truncated colour difference")
+    gradient_weight: float = option(0.15000000596046448, low=0, search=Simplex("weight_logits"),
+                                    help="beta of Eq. 5: weight of the gradient difference")
+    census_weight: float = option(0.800000011920929, low=0, search=Simplex("weight_logits"),
+                                  help="gamma of Eq. 5: weight of the census Hamming distance")
+    tad_truncation: float = option(0.04221818596124649, above=0, search=Sigmoid(0.002, 0.3),
+                                   help="tau of Eq. 2 on the channel-mean absolute difference")
+    gradient_truncation: float = option(0.015484430827200413, above=0,
+                                        search=Sigmoid(0.005, 1.0),
+                                        help="truncation of the gradient-magnitude difference "
+                                             "(Eq. 3)")
+
+    def validate(self, params) -> None:
+        """A census window needs a neighbour; the weights must be able to produce a cost."""
+        if self.census_height == 1 and self.census_width == 1:
+            raise ConfigError("cost.census_height", "parameters cost.census_height and "
+                              "cost.census_width: a 1 x 1 census window compares no neighbour")
+        weights = [self.tad_weight, self.gradient_weight, self.census_weight]
+        if all(not isinstance(w, jax.core.Tracer) for w in weights) \
+                and sum(abs(float(w)) for w in weights) == 0:
+            raise ConfigError("cost.census_weight", "parameters cost.tad_weight, "
+                              "gradient_weight and census_weight are all 0: no pixel has a cost")
+
+    def _terms(self) -> dict:
+        return dict(tad_weight=self.tad_weight, gradient_weight=self.gradient_weight,
+                    census_weight=self.census_weight, tad_truncation=self.tad_truncation,
+                    gradient_truncation=self.gradient_truncation)
+
+    def features(self, left: jax.Array, right: jax.Array) -> MatchingFeatures:
+        """The per-image terms of the cost (:func:`~sswjax.stages.cost.matching_features`)."""
+        return matching_features(left, right, census_height=self.census_height,
+                                 census_width=self.census_width)
+
+    def slices(self, features: MatchingFeatures, first, count: int) -> jax.Array:
+        """Cost slices of disparities ``first .. first + count - 1``: float32 (count, H, W)."""
+        return matching_cost(features, first, count, **self._terms())
+
+    def at(self, features: MatchingFeatures, disparity: jax.Array) -> jax.Array:
+        """The cost of each pixel at its own disparity (int32 (H, W)): float32 (H, W)."""
+        return matching_cost_at(features, disparity, **self._terms())
+
+    def bound(self):
+        """The largest cost of a matching pixel: the weights' sum (each term is in [0, 1])."""
+        return abs(self.tad_weight) + abs(self.gradient_weight) + abs(self.census_weight)
+
+
+@register("segments", "slic")
+class Slic(Part):
+    """SLIC superpixels of the left image (Achanta et al. 2012), shared by the segment-aware
+    stages (Eq. 6)."""
+
+    n_segments: int = option(2000, static=True, low=1, high=1_000_000,
+                             help="requested superpixel count (Eq. 6)")
+    iterations: int = option(10, static=True, low=1, high=100,
+                             help="SLIC assignment / update rounds")
+    compactness: float = option(10.0, above=0, help="m of Eq. 6: colour against position")
+
+    def validate(self, params) -> None:
+        """Superpixels must have a stage that uses them."""
+        users = [part for part in (params.aggregation, params.optimizer, params.fill)
+                 if part is not None and getattr(part, "uses_segments", False)]
+        if not users:
+            raise ConfigError("segments", "segments: no stage uses the superpixels (the "
+                              "segment-side-window aggregation, the semi-global optimiser or the "
+                              "plane fill); set segments to None")
+
+    def labels(self, left: jax.Array) -> tuple[jax.Array, int]:
+        """int32 (H, W) labels of the left image and their static count."""
+        height, width = left.shape[:2]
+        ny, nx = slic_grid_shape(height, width, self.n_segments)
+        image = left if left.shape[-1] == 3 else jnp.repeat(left, 3, axis=-1)
+        labels = slic(image, n_segments=self.n_segments, compactness=self.compactness,
+                      iterations=self.iterations)
+        return labels, ny * nx

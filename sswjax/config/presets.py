@@ -1,0 +1,98 @@
+"""Named compositions of the stage configurations: the presets, and the default.
+
+``paper`` is ``Params()``. The others were chosen by the static grids of ``docs/`` ("Beyond
+the paper", "Speed") under the rule of ``benchmarks/held_out.py`` (lowest mean error relative
+to the best, over MiddEval3 trainingQ, KITTI 2012 and Middlebury 2001): P1 and P2 of each
+preset, the separable median's width and the side-window passes. Every semi-global preset stores
+the aggregated cost in uint8 levels for the int16 paths (a quarter of float32's bytes through
+the memory-bound scans; the same errors within 0.03 on every set) and runs the occlusion tests:
+the uniqueness test on the costs before aggregation, the aggregated cost's right view and the
+left band's fitted line.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from sswjax.config.aggregation import SideWindowAggregation
+from sswjax.config.fill import LeftBandFill, VoteFill, WeightedMedianFill
+from sswjax.config.optimizer import SemiGlobal
+from sswjax.config.params import Params
+from sswjax.config.refinement import CoarseToFine
+from sswjax.config.selection import LeftRightCheck
+
+__all__ = ["DEFAULT_PRESET", "PRESETS", "Preset", "default_params", "preset"]
+
+
+class Preset(NamedTuple):
+    """An entry of :data:`PRESETS`: the parameters and a one-line summary."""
+
+    params: Params
+    summary: str
+
+
+_PAPER = Params()
+_OCCLUSION_CHECKS = LeftRightCheck(uniqueness_gap=2, uniqueness_radius=2, aggregated_gap=2)
+_SEMI_GLOBAL = _PAPER.replace(
+    segments=None,
+    optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.12, p2=0.8),
+    checks=_OCCLUSION_CHECKS,
+    fill=LeftBandFill(median_radius=7, median="separable", band_fit=15),
+)
+# accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
+# three passes, 15 x 15 and the left-band fill; fast keeps those.
+_ACCURATE = _SEMI_GLOBAL.replace(
+    aggregation=SideWindowAggregation(iterations=1),
+    optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
+    fill=VoteFill(median_radius=9, median="separable", band_fit=15),
+)
+
+PRESETS: dict[str, Preset] = {
+    "paper": Preset(_PAPER, "the paper's method: SSW aggregation, winner-takes-all, LR check, "
+                            "fill, side-window median"),
+    "accurate": Preset(_ACCURATE, "one side-window pass without the segment term, then "
+                                  "semi-global optimisation of the aggregated cost (4 paths), "
+                                  "occlusion tests, intensity-weighted vote fill"),
+    "fast": Preset(_SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1)),
+                   "the same method on the pair halved (three side-window passes), the map "
+                   "doubled back guided by the left image (coarse-to-fine): about 5x faster, "
+                   "less precise below 2 pixels"),
+    "finest": Preset(_ACCURATE.replace(
+        aggregation=SideWindowAggregation(iterations=2),
+        optimizer=SemiGlobal(paths=8, dtype="uint8", p1=0.05, p2=0.8),
+        fill=WeightedMedianFill(band_fit=15)),
+        "accurate with two side-window passes, 8 paths, P1 0.05 and P2 0.8, and the guided "
+        "weighted-median fill of the rejected pixels: the most accurate on occlusions and "
+        "slanted planes, about 2x accurate's time"),
+}
+"""Preset name -> :class:`Preset`."""
+
+DEFAULT_PRESET = "accurate"
+"""The preset of :func:`sswjax.match`, ``match_with_confidence``, the batch functions and the
+CLI when no parameters are given (:func:`default_params`). ``Params()`` itself holds the
+paper's values (the ``paper`` preset)."""
+
+
+def preset(name: str) -> Params:
+    """The parameters of a named preset of :data:`PRESETS`.
+
+    Examples
+    --------
+    >>> preset("accurate").optimizer.kind
+    'sgm'
+    """
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return PRESETS[name].params
+
+
+def default_params() -> Params:
+    """The parameters used when none are given: the :data:`DEFAULT_PRESET` preset
+    (``accurate``), chosen across data sets; ``Params()`` is the paper's method.
+
+    Examples
+    --------
+    >>> default_params() == preset("accurate")
+    True
+    """
+    return preset(DEFAULT_PRESET)

@@ -1,0 +1,179 @@
+"""Parameters as JSON: the nested per-stage form, and the old flat files.
+
+The nested form (what :func:`save_params` writes) is ``{"format": "sswjax-params/2",
+"<slot>": null | {"kind": ..., "<option>": value, ...}, ..., "provenance": {...}}``. A file may
+also be partial: ``"preset": NAME`` starts from that preset (default the paper's method,
+``Params()``), a slot's mapping without ``"kind"`` changes options of the base's part and one
+with another kind starts from that part's defaults. Files of the flat names
+(``{"static": {...}, "dynamic": {...}}``, or the names at the top level) load through
+:mod:`sswjax.config.legacy`; their execution options (``strip_rows``, ...) come back apart.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from collections.abc import Mapping
+
+from sswjax._files import atomic_output
+from sswjax.config.fields import ConfigError, check_value, option_fields
+from sswjax.config.legacy import (DYNAMIC_DEFAULTS, EXECUTION_DEFAULTS, STATIC_DEFAULTS, from_flat,
+                                  old_names, translate)
+from sswjax.config.params import Params
+from sswjax.config.parts import SLOTS
+from sswjax.config.presets import PRESETS
+from sswjax.config.validate import check_params
+
+__all__ = ["FORMAT", "load_params", "params_from_dict", "read_params_file", "save_params"]
+
+FORMAT = "sswjax-params/2"
+"""The ``"format"`` of the nested JSON form."""
+
+_IGNORED = ("provenance", "comment")
+
+
+def _is_flat(data: Mapping) -> bool:
+    """Whether a JSON object uses the old flat names (refusing one that mixes the forms)."""
+    flat = [key for key in data
+            if key in ("static", "dynamic")
+            or (key in old_names() and (key not in SLOTS or isinstance(data[key], str)))]
+    nested = [key for key in data if key in ("format", "preset")
+              or (key in SLOTS and not isinstance(data[key], str))]
+    if flat and nested:
+        raise ConfigError(flat[0], f"parameters mix the flat name {flat[0]!r} with the per-stage "
+                          f"form ({nested[0]!r}): use one")
+    return bool(flat)
+
+
+def read_params_dict(data) -> tuple[Params, dict]:
+    """Validated ``Params`` and the execution options of a JSON object (either form).
+
+    Raises ``ConfigError`` (a ``ValueError``) with a one-line message.
+    """
+    if not isinstance(data, Mapping):
+        raise ConfigError("", f"parameters must be a JSON object, got {type(data).__name__}")
+    if _is_flat(data):
+        return _read_flat(data)
+    unknown = [key for key in data if key not in SLOTS and key not in ("format", "preset")
+               and key not in _IGNORED]
+    if unknown:
+        raise ConfigError(unknown[0], f"unknown parameter {unknown[0]!r}; stages: "
+                          f"{', '.join(SLOTS)}")
+    if data.get("format", FORMAT) != FORMAT:
+        raise ConfigError("format", f"unknown parameter format {data['format']!r}; this version "
+                          f"reads {FORMAT!r} and the flat files before it")
+    name = data.get("preset", "paper")
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ConfigError("preset", f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    params = PRESETS[name].params
+    for slot in SLOTS:
+        if slot in data:
+            value = data[slot]
+            if value is not None and not isinstance(value, Mapping):
+                raise ConfigError(slot, f"stage {slot} must be null or an object, got {value!r}")
+            params = params.replace(**{slot: value})
+    return check_params(_canonical(params)), {}
+
+
+def _read_flat(data: Mapping) -> tuple[Params, dict]:
+    flat: dict = {}
+    for key, value in data.items():
+        if key in ("static", "dynamic") and isinstance(value, Mapping):
+            names = ({**STATIC_DEFAULTS, **EXECUTION_DEFAULTS} if key == "static"
+                     else DYNAMIC_DEFAULTS)
+            for name, item in value.items():
+                if name not in names:
+                    raise ConfigError(name, f"unknown {key} parameter {name!r}")
+                flat[name] = item
+        elif key in _IGNORED:
+            continue
+        elif key in old_names():
+            flat[key] = value
+        else:
+            raise ConfigError(key, f"unknown parameter {key!r}")
+    try:
+        reading = from_flat(flat)
+        params = check_params(_canonical(Params(**reading.slots)))
+    except ConfigError as error:
+        raise translate(error) from None
+    if reading.unused:
+        warnings.warn("ignored (as before the per-stage parameters): "
+                      + "; ".join(reading.unused.values()), stacklevel=4)
+    return params, reading.execution
+
+
+def _canonical(params: Params) -> Params:
+    """``params`` with each option in its canonical type (JSON integers of traced options as
+    floats), checked one by one."""
+    changes = {}
+    for slot, config in params.stages():
+        if config is None:
+            continue
+        for name, spec in option_fields(config):
+            value = check_value(f"{slot}.{name}", spec, getattr(config, name))
+            if value is not getattr(config, name):
+                changes[f"{slot}.{name}"] = value
+    return params.replace(**changes) if changes else params
+
+
+def params_from_dict(data) -> Params:
+    """Validated ``Params`` of a JSON object in either form (execution options dropped with a
+    warning: see :func:`read_params_file`)."""
+    params, execution = read_params_dict(data)
+    _warn_execution(execution)
+    return params
+
+
+def _warn_execution(execution: Mapping) -> None:
+    chosen = {k: v for k, v in execution.items() if v != EXECUTION_DEFAULTS[k]}
+    if chosen:
+        listed = ", ".join(f"{k}={v!r}" for k, v in chosen.items())
+        warnings.warn(f"{listed} in the parameters is how a call runs, not a parameter: pass "
+                      f"plan=sswjax.ExecutionPlan({listed}) to sswjax.match", stacklevel=3)
+
+
+def read_params_file(path: str | os.PathLike) -> tuple[Params, dict]:
+    """The parameters of a JSON file and its execution options (old flat files may hold
+    ``strip_rows``, ``strip_overlap`` and ``disparity_chunk``; the command line applies them).
+
+    Raises ``ValueError`` with a one-line message for a missing file, invalid JSON, unknown
+    keys, wrong types or out-of-range values.
+    """
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise ValueError(f"parameter file not found: {path}") from None
+    except RecursionError:
+        raise ValueError(f"cannot read parameter file {path}: nested too deeply") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"cannot read parameter file {path}: {error}") from None
+    try:
+        return read_params_dict(data)
+    except ConfigError as error:
+        raise ConfigError(error.path, f"{path}: {error}") from None
+
+
+def load_params(path: str | os.PathLike) -> Params:
+    """Read parameters from a JSON file written by :func:`save_params` (or by hand, or an old
+    flat file).
+
+    Raises ``ValueError`` with a one-line message for a missing file, invalid JSON, unknown
+    keys, wrong types or out-of-range values.
+    """
+    params, execution = read_params_file(path)
+    _warn_execution(execution)
+    return params
+
+
+def save_params(path: str | os.PathLike, params: Params, *, provenance: Mapping | None = None
+                ) -> None:
+    """Write ``params`` (and optional provenance) as nested JSON, atomically."""
+    data = {"format": FORMAT, **params.to_dict()}
+    if provenance is not None:
+        data["provenance"] = dict(provenance)
+    with atomic_output(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as handle:
+            json.dump(data, handle, indent=2)
+            handle.write("\n")
