@@ -7,25 +7,37 @@ filling and side-window refinement.
 
 >>> import sswjax
 >>> disparity = sswjax.match(left, right, ndisp=64)          # doctest: +SKIP
+
+The package in layers, each importing only those before it: ``stages`` (pure functions on
+arrays) -> ``config`` (the parameters, per stage) -> ``graph`` (the jitted method) ->
+``runtime`` (execution plans: buckets, strips, memory, devices) -> ``api`` (the NumPy front
+door) -> ``data`` / ``evaluation`` / ``search`` -> ``cli``. This module only names the public
+API.
 """
 
-from sswjax.params import (DynamicParams, Params, StaticParams, default_params, load_params, preset,
-                           save_params)
-from sswjax.registry import DEFAULT_PRESET, PRESETS
-from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
-from sswjax.api import Matched, ShapeBuckets, match, match_with_confidence
-from sswjax.pipeline import aggregated_cost, select_and_refine, ssw_disparity, ssw_outputs
+from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
+from sswjax.api.match import Matched, match, match_with_confidence
+from sswjax.config import (DEFAULT_PRESET, PRESETS, ConfigError, Params, check_params,
+                           default_params, load_params, preset, save_params)
+from sswjax.data.calibration import read_calibration
+from sswjax.data.ply import write_ply
+from sswjax.graph import aggregated_cost, ssw_disparity, ssw_outputs
+from sswjax.runtime.buckets import ShapeBuckets
+from sswjax.runtime.memory import MemoryEstimateError
+from sswjax.runtime.plan import ExecutionPlan
 
 __all__ = [
     "Calibration",
+    "ConfigError",
     "DEFAULT_PRESET",
-    "DynamicParams",
+    "ExecutionPlan",
     "Matched",
+    "MemoryEstimateError",
     "PRESETS",
     "Params",
     "ShapeBuckets",
-    "StaticParams",
     "aggregated_cost",
+    "check_params",
     "default_params",
     "depth_from_disparity",
     "load_params",
@@ -35,7 +47,6 @@ __all__ = [
     "preset",
     "read_calibration",
     "save_params",
-    "select_and_refine",
     "ssw_disparity",
     "ssw_outputs",
     "write_ply",

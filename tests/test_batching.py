@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.batching import iter_match_scenes, match_batch, match_scenes
-from sswjax.api import bucket_shape
+from sswjax.api import batch
+from sswjax.api.batch import iter_match_scenes, match_batch, match_scenes
+from sswjax.runtime.buckets import bucket_shape
 
 PARAMS = sswjax.Params().replace(n_segments=16)
 
@@ -31,7 +32,7 @@ def test_batch_equals_pairs_one_by_one():
 
 SCRIPT = """
 import numpy as np, jax, sswjax
-from sswjax.batching import match_batch
+from sswjax.api.batch import match_batch
 rng = np.random.default_rng(11)
 rights = rng.random((3, 28, 48, 3), dtype=np.float32)
 lefts = np.stack([np.roll(r, 2 + i, axis=1) for i, r in enumerate(rights)])
@@ -72,20 +73,18 @@ def _scenes():
 def _run_scenes(devices):
     """The scenes' maps (in input order), their order of completion and, per sharded call,
     [batch size, pairs per device]."""
-    import sswjax.batching as batching
-
     pairs, ndisps = _scenes()
-    calls, inner = [], batching._batched
+    calls, inner = [], batch._batched
 
-    def spy(lefts, rights, valid_ndisps, params, *, ndisp):
+    def spy(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
         calls.append([lefts.shape[0], lefts.sharding.shard_shape(lefts.shape)[0]])
-        return inner(lefts, rights, valid_ndisps, params, ndisp=ndisp)
+        return inner(lefts, rights, valid_ndisps, params, ndisp=ndisp, chunk=chunk)
 
-    batching._batched = spy
+    batch._batched = spy
     try:
         done = list(iter_match_scenes(pairs, ndisps, params=LIGHT, buckets=BUCKETS, devices=devices))
     finally:
-        batching._batched = inner
+        batch._batched = inner
     maps = [None] * len(pairs)
     for index, disparity, _ in done:
         maps[index] = disparity
@@ -112,12 +111,10 @@ def test_scenes_equal_bucketed_match_one_by_one(one_device):
 
 
 def test_scenes_check_every_pair_before_running(monkeypatch):
-    import sswjax.batching as batching
-
     def never(*args, **kwargs):
         raise AssertionError("a step ran before the last pair was checked")
 
-    monkeypatch.setattr(batching, "_batched", never)
+    monkeypatch.setattr(batch, "_batched", never)
     pairs, ndisps = _scenes()
     with pytest.raises(ValueError, match="ndisp must be in"):
         match_scenes(pairs, ndisps[:-1] + [60], params=LIGHT, buckets=BUCKETS)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.api import ShapeBuckets, bucket_shape
-from sswjax.pipeline import ssw_disparity
+from sswjax.graph import ssw_disparity
+from sswjax.runtime.buckets import ShapeBuckets, bucket_shape
 
 BUCKETS = ShapeBuckets(size_step=64, ndisp_step=16)
 
@@ -58,7 +58,7 @@ def test_padded_disparities_are_never_chosen():
 def test_second_process_reuses_the_compilation_cache(tmp_path):
     script = (
         "import numpy as np, sswjax\n"
-        "from sswjax.compilation import enable_compilation_cache\n"
+        "from sswjax.runtime.compilation import enable_compilation_cache\n"
         "enable_compilation_cache()\n"
         "r = np.random.default_rng(0).random((24, 40, 3)).astype(np.float32)\n"
         "sswjax.match(np.roll(r, 2, axis=1), r, 6, params=sswjax.Params().replace(n_segments=8))\n"

@@ -1,7 +1,6 @@
 """Disparities in chunks (running minimum over lax.scan) give the whole-volume result.
 
-The reference is ``disparity_chunk=0`` (the whole cost volume at once), not ``Params()``,
-whose default is chunked (4)."""
+The reference is ``chunk=0`` (the whole cost volume at once), not the default ``chunk`` (4)."""
 
 from __future__ import annotations
 
@@ -11,9 +10,9 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.api import prepare_pair
-from sswjax.params import Params
-from sswjax.pipeline import ssw_disparity
+from sswjax.api.images import prepare_pair
+from sswjax.config import Params
+from sswjax.graph import ssw_disparity
 
 NDISP = 12
 
@@ -30,17 +29,17 @@ def pair():
 
 @pytest.mark.parametrize("chunk", [5, 4, 11])
 def test_chunked_winners_are_identical(pair, chunk):
-    base = Params().replace(subpixel=False, n_segments=24, disparity_chunk=0)
-    whole = ssw_disparity(*pair, base, ndisp=NDISP)
-    chunked = ssw_disparity(*pair, base.replace(disparity_chunk=chunk), ndisp=NDISP)
+    base = Params().replace(subpixel=False, n_segments=24)
+    whole = ssw_disparity(*pair, base, ndisp=NDISP, chunk=0)
+    chunked = ssw_disparity(*pair, base, ndisp=NDISP, chunk=chunk)
     np.testing.assert_array_equal(np.asarray(whole), np.asarray(chunked))
 
 
 @pytest.mark.parametrize("changes", [{}, {"window_selection": "guide"}, {"aggregation": "gf"}])
 def test_chunked_subpixel_matches_to_rounding(pair, changes):
-    base = Params().replace(n_segments=24, disparity_chunk=0, **changes)
-    whole = np.asarray(ssw_disparity(*pair, base, ndisp=NDISP))
-    chunked = np.asarray(ssw_disparity(*pair, base.replace(disparity_chunk=5), ndisp=NDISP))
+    base = Params().replace(n_segments=24).replace(**changes)  # gf: no superpixels left
+    whole = np.asarray(ssw_disparity(*pair, base, ndisp=NDISP, chunk=0))
+    chunked = np.asarray(ssw_disparity(*pair, base, ndisp=NDISP, chunk=5))
     # Same winners; the parabola's inputs may differ in the last bit between XLA fusions.
     np.testing.assert_allclose(chunked, whole, rtol=0, atol=1e-4)
     if "aggregation" not in changes:  # GF's radius 9 is wider than the near layer
@@ -48,11 +47,11 @@ def test_chunked_subpixel_matches_to_rounding(pair, changes):
 
 
 def test_chunked_under_vmap(pair):
-    params = Params().replace(n_segments=24, disparity_chunk=5)
+    params = Params().replace(n_segments=24)
     lefts = jnp.stack([pair[0], pair[0][:, ::-1]])
     rights = jnp.stack([pair[1], pair[1][:, ::-1]])
-    batched = jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=NDISP))(lefts, rights)
-    single = ssw_disparity(lefts[1], rights[1], params, ndisp=NDISP)
+    batched = jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=NDISP, chunk=5))(lefts, rights)
+    single = ssw_disparity(lefts[1], rights[1], params, ndisp=NDISP, chunk=5)
     np.testing.assert_allclose(np.asarray(batched[1]), np.asarray(single), atol=1e-5)
 
 
@@ -64,8 +63,6 @@ def test_optimized_volume_folds_in_chunks_like_the_whole_volume(chunk):
     right = rng.random((30, 50, 3), dtype=np.float32)
     left = np.roll(right, 4, axis=1)
     params = sswjax.preset("accurate").replace(n_segments=20)
-    whole = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params.replace(disparity_chunk=0),
-                          ndisp=11)
-    blocks = ssw_disparity(jnp.asarray(left), jnp.asarray(right),
-                           params.replace(disparity_chunk=chunk), ndisp=11)
+    whole = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=0)
+    blocks = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=chunk)
     np.testing.assert_allclose(np.asarray(blocks), np.asarray(whole), atol=1e-4, rtol=0)

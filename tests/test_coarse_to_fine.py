@@ -6,6 +6,7 @@ import pytest
 from skimage import data
 
 import sswjax
+from sswjax.runtime.memory import memory_terms
 from sswjax import ssw_disparity, ssw_outputs
 
 H, W, NDISP = 48, 96, 24
@@ -64,7 +65,6 @@ def test_fast_on_motorcycle_stays_within_its_measured_error():
 
 
 def test_the_memory_estimate_counts_the_volume_at_the_coarse_size():
-    from sswjax.memory import memory_terms
     fine = memory_terms(400, 600, 128, params=sswjax.preset("accurate"))
     coarse = memory_terms(400, 600, 128, params=sswjax.preset("fast"))
     assert coarse["sgm"] == fine["sgm"] / 8

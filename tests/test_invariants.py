@@ -11,11 +11,12 @@ import subprocess
 import sys
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import sswjax
-from sswjax import Params
+from sswjax import ConfigError, Params
 from sswjax.cli import main
 from sswjax.data.io import read_image, read_pfm
 
@@ -77,6 +78,10 @@ def test_pipeline_invariants_on_random_images(shape, kind, dtype, seed, weights,
         tad_truncation=truncations[0], gradient_truncation=truncations[1],
         segment_weight=segment_weight, lr_tolerance=lr_tolerance,
     )
+    if sum(weights) == 0:  # no cost at all: refused before anything runs
+        with pytest.raises(ConfigError, match="are all 0: no pixel has a cost"):
+            sswjax.match(left, right, NDISP, params=params)
+    assume(sum(weights) > 0)
     disparity = sswjax.match(left, right, NDISP, params=params)
     assert isinstance(disparity, np.ndarray)
     assert disparity.shape == shape[:2] and disparity.dtype == np.float32

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.ranges import check_disparity_range, from_range_frame, range_frame
+from sswjax.api.ranges import check_disparity_range, from_range_frame, range_frame
 
 NDISP = 12
 
@@ -55,11 +55,12 @@ def test_positive_range_is_the_plain_run_shifted(scene):
 def test_ranges_with_buckets_strips_and_chunks(scene):
     left, right = scene
     buckets = sswjax.ShapeBuckets(size_step=32, ndisp_step=16)
-    params = sswjax.Params().replace(strip_rows=16, strip_overlap=8, disparity_chunk=5)
-    plain = sswjax.match(left, right(), NDISP, params=params, buckets=buckets)
-    ranged = sswjax.match(left, right(5), NDISP, min_disp=5, params=params, buckets=buckets)
+    params = sswjax.Params()
+    plan = sswjax.ExecutionPlan(strip_rows=16, strip_overlap=8, disparity_chunk=5, buckets=buckets)
+    plain = sswjax.match(left, right(), NDISP, params=params, plan=plan)
+    ranged = sswjax.match(left, right(5), NDISP, min_disp=5, params=params, plan=plan)
     np.testing.assert_array_equal(ranged, plain + np.float32(5))
-    negative = sswjax.match(left, right(-8), NDISP, min_disp=-8, params=params, buckets=buckets)
+    negative = sswjax.match(left, right(-8), NDISP, min_disp=-8, params=params, plan=plan)
     assert negative.shape == left.shape[:2]
     assert negative.min() >= -8 and negative.max() <= 3
     assert np.mean(np.abs(negative[:, 45:] + 5) < 0.5) > 0.95

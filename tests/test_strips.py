@@ -1,9 +1,11 @@
-"""Matching in horizontal strips (``strip_rows``): memory follows the strip, results the image."""
+"""Matching in horizontal strips (``ExecutionPlan.strip_rows``): memory follows the strip, results
+the image."""
 
 import numpy as np
 import pytest
 
 import sswjax
+from sswjax import ExecutionPlan
 
 
 @pytest.fixture(scope="module")
@@ -16,20 +18,30 @@ def test_local_method_in_strips_equals_the_whole_image(pair):
     # windows, medians): strips with a wide enough overlap reproduce the whole image exactly.
     params = sswjax.preset("paper").replace(n_segments=0)
     whole = sswjax.match(*pair, 12, params=params)
-    strips = sswjax.match(*pair, 12, params=params.replace(strip_rows=20, strip_overlap=24))
+    strips = sswjax.match(*pair, 12, params=params,
+                          plan=ExecutionPlan(strip_rows=20, strip_overlap=24))
     np.testing.assert_array_equal(strips, whole)
 
 
 def test_sgm_in_strips_stays_close_to_the_whole_image(pair):
     params = sswjax.preset("accurate")
     whole = sswjax.match(*pair, 12, params=params)
-    strips = sswjax.match(*pair, 12, params=params.replace(strip_rows=30, strip_overlap=16))
+    strips = sswjax.match(*pair, 12, params=params,
+                          plan=ExecutionPlan(strip_rows=30, strip_overlap=16))
     assert strips.shape == whole.shape
     assert np.mean(np.abs(strips - whole) > 0.5) < 0.02   # vertical paths restart at the seams
     assert np.median(strips[35:55, 30:40]) == pytest.approx(7, abs=0.05)
 
 
 def test_strips_with_buckets(pair):
-    params = sswjax.preset("paper").replace(n_segments=0, strip_rows=40, strip_overlap=24)
-    bucketed = sswjax.match(*pair, 12, params=params, buckets=sswjax.ShapeBuckets(32, 16))
+    params = sswjax.preset("paper").replace(n_segments=0)
+    plan = ExecutionPlan(strip_rows=40, strip_overlap=24, buckets=sswjax.ShapeBuckets(32, 16))
+    bucketed = sswjax.match(*pair, 12, params=params, plan=plan)
+    # the buckets given beside the plan are the plan's buckets
+    np.testing.assert_array_equal(sswjax.match(*pair, 12, params=params, buckets=plan.buckets,
+                                               plan=plan._replace(buckets=None)), bucketed)
+    with pytest.raises(ValueError, match="buckets and plan.buckets differ"):
+        sswjax.match(*pair, 12, params=params, plan=plan, buckets=sswjax.ShapeBuckets(64, 16))
+    with pytest.raises(ValueError, match="plan.strip_rows must be an integer"):
+        sswjax.match(*pair, 12, params=params, plan=ExecutionPlan(strip_rows=-1))
     assert bucketed.shape == (90, 60) and np.isfinite(bucketed).all()

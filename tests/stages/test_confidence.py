@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax import Params, pipeline
+from sswjax import Params, graph
 from sswjax.stages.confidence import (
     LEFT_BAND,
     LOW_CONFIDENCE,
@@ -115,10 +115,10 @@ def _pair(seed=3, shift=4, size=(40, 56)):
 @pytest.mark.parametrize("optimizer", ["none", "sgm"])
 def test_outputs_same_for_every_chunk_and_equal_to_ssw_disparity(optimizer):
     left, right = _pair()
-    params = Params().replace(n_segments=16, optimizer=optimizer, sgm_paths=4)
-    outputs = [pipeline.ssw_outputs(left, right, params.replace(disparity_chunk=k), ndisp=12)
-               for k in (0, 4, 5)]
-    disparity = pipeline.ssw_disparity(left, right, params, ndisp=12)
+    params = Params().replace(n_segments=16, optimizer=optimizer)
+    params = params.replace(sgm_paths=4) if optimizer != "none" else params
+    outputs = [graph.ssw_outputs(left, right, params, ndisp=12, chunk=k) for k in (0, 4, 5)]
+    disparity = graph.ssw_disparity(left, right, params, ndisp=12)
     for out in outputs:
         np.testing.assert_array_equal(np.asarray(out.disparity), np.asarray(disparity))
         np.testing.assert_allclose(np.asarray(out.confidence), np.asarray(outputs[0].confidence),
@@ -138,6 +138,6 @@ def test_confidence_higher_on_texture_than_on_a_flat_pair():
     noise = np.random.default_rng(9).random((2, *left.shape), dtype=np.float32)
     flat = jnp.asarray(0.5 + 0.004 * noise)
     params = Params().replace(n_segments=16)
-    textured = np.asarray(pipeline.ssw_outputs(left, right, params, ndisp=12).confidence)
-    faint = np.asarray(pipeline.ssw_outputs(flat[0], flat[1], params, ndisp=12).confidence)
+    textured = np.asarray(graph.ssw_outputs(left, right, params, ndisp=12).confidence)
+    faint = np.asarray(graph.ssw_outputs(flat[0], flat[1], params, ndisp=12).confidence)
     assert np.median(textured[:, 12:]) > 0.2 > np.median(faint[:, 12:])

@@ -1,4 +1,5 @@
-"""Depth maps and point clouds from a disparity map and the rig's calibration.
+"""Depth maps and point clouds from a disparity map and the rig's calibration (the maths; the
+files are :mod:`sswjax.data.calibration` and :mod:`sswjax.data.ply`).
 
 Conventions (whole module):
 
@@ -17,25 +18,14 @@ Conventions (whole module):
 from __future__ import annotations
 
 import math
-import os
-import re
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax.data.files import InputError, atomic_output
+from sswjax.api.images import to_float_image
 
-__all__ = [
-    "Calibration",
-    "PointCloud",
-    "check_calibration",
-    "depth_from_disparity",
-    "point_cloud",
-    "read_calibration",
-    "write_ply",
-]
+__all__ = ["Calibration", "PointCloud", "check_calibration", "depth_from_disparity", "point_cloud"]
 
 
 class Calibration(NamedTuple):
@@ -102,63 +92,6 @@ def check_calibration(calib: Calibration) -> Calibration:
                        principal)
 
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-
-
-def read_calibration(path: str | os.PathLike) -> Calibration:
-    """The left camera of a Middlebury ``calib.txt``: ``cam0``, ``baseline`` and ``doffs``.
-
-    ``cam0=[f 0 cx; 0 f cy; 0 0 1]`` gives the focal length and principal point (its two focal
-    lengths must agree: the rectified rigs of Middlebury and ETH3D have square pixels);
-    ``doffs`` defaults to 0 when absent; ``ndisp`` and the other keys are not needed.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    Calibration
-
-    Raises
-    ------
-    InputError
-        If the file is missing or unreadable, lacks ``cam0`` or ``baseline``, has a malformed
-        ``cam0`` or a non-positive focal length or baseline.
-
-    Examples
-    --------
-    >>> read_calibration("trainingQ/Motorcycle/calib.txt")  # doctest: +SKIP
-    Calibration(focal=999.421, baseline=193.001, doffs=32.778, principal=(294.182, 252.932))
-    """
-    from sswjax.data.datasets import read_calib
-
-    path = Path(path)
-    calib = read_calib(path, require_ndisp=False)
-    missing = [key for key in ("cam0", "baseline") if key not in calib]
-    if missing:
-        raise InputError(f"calibration file {path} lacks {' and '.join(missing)}")
-    cam0 = str(calib["cam0"])
-    rows = [re.findall(_NUMBER, row) for row in cam0.strip().strip("[]").split(";")]
-    if not (cam0.strip().startswith("[") and cam0.strip().endswith("]")) or \
-            [len(row) for row in rows] != [3, 3, 3]:
-        raise InputError(f"calibration file {path}: cam0 must be [f 0 cx; 0 f cy; 0 0 1], "
-                         f"got {cam0[:60]!r}")
-    (fx, _, cx), (_, fy, cy), _ = [[float(v) for v in row] for row in rows]
-    if not math.isclose(fx, fy, rel_tol=1e-6):
-        raise InputError(f"calibration file {path}: cam0 has two focal lengths {fx:g} and "
-                         f"{fy:g}; only square pixels are supported")
-    for key in ("baseline", "doffs"):
-        if not isinstance(calib.get(key, 0.0), float):
-            raise InputError(f"calibration file {path}: {key} must be a number, "
-                             f"got {calib[key]!r}")
-    try:
-        return check_calibration(Calibration(fx, calib["baseline"], calib.get("doffs", 0.0),
-                                             (cx, cy)))
-    except ValueError as exc:
-        raise InputError(f"calibration file {path}: {exc}") from exc
-
-
 def depth_from_disparity(disparity, *, focal: float, baseline: float, doffs: float = 0.0
                          ) -> np.ndarray:
     """Depth ``Z = baseline * focal / (disparity + doffs)`` of every pixel.
@@ -199,8 +132,6 @@ def depth_from_disparity(disparity, *, focal: float, baseline: float, doffs: flo
 
 def _colours(image) -> np.ndarray:
     """uint8 ``(H, W, 3)`` colours of a user image (the formats of :func:`sswjax.match`)."""
-    from sswjax.api import to_float_image
-
     rgb = np.round(to_float_image(image) * 255).clip(0, 255).astype(np.uint8)
     return np.repeat(rgb, 3, axis=-1) if rgb.shape[-1] == 1 else rgb
 
@@ -245,49 +176,3 @@ def point_cloud(disparity, image, calib: Calibration) -> PointCloud:
     z = depth[rows, cols].astype(np.float64)
     xyz = np.stack([(cols - cx) * z / calib.focal, (rows - cy) * z / calib.focal, z], axis=-1)
     return PointCloud(xyz.astype(np.float32), rgb[rows, cols])
-
-
-def write_ply(path: str | os.PathLike, xyz, rgb) -> None:
-    """Atomically write a binary little-endian PLY point cloud (MeshLab, CloudCompare, Open3D).
-
-    One ``vertex`` element with ``float x, y, z`` and ``uchar red, green, blue``.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-    xyz : array_like floating (N, 3)
-    rgb : array_like uint8 (N, 3)
-
-    Raises
-    ------
-    ValueError, TypeError
-        On bad shapes or dtypes.
-    InputError
-        If the file cannot be written.
-
-    Examples
-    --------
-    >>> cloud = point_cloud(np.full((2, 2), 10.0), np.zeros((2, 2), np.uint8),
-    ...                     Calibration(focal=100, baseline=0.5))
-    >>> write_ply("cloud.ply", *cloud)  # doctest: +SKIP
-    """
-    xyz, rgb = np.asarray(xyz), np.asarray(rgb)
-    check_rank("xyz", xyz, 2)
-    check_floating("xyz", xyz)
-    if xyz.shape[1] != 3 or rgb.shape != xyz.shape:
-        raise ValueError(f"xyz and rgb must both be (N, 3), got {xyz.shape} and {rgb.shape}")
-    if rgb.dtype != np.uint8:
-        raise TypeError(f"rgb must be uint8, got {rgb.dtype}")
-    vertices = np.empty(len(xyz), [(c, "<f4") for c in "xyz"] +
-                        [(c, "u1") for c in ("red", "green", "blue")])
-    for i, c in enumerate("xyz"):
-        vertices[c] = xyz[:, i]
-    for i, c in enumerate(("red", "green", "blue")):
-        vertices[c] = rgb[:, i]
-    header = "\n".join(["ply", "format binary_little_endian 1.0", "comment written by sswjax",
-                        f"element vertex {len(xyz)}", "property float x", "property float y",
-                        "property float z", "property uchar red", "property uchar green",
-                        "property uchar blue", "end_header"]) + "\n"
-    with atomic_output(path) as tmp, open(tmp, "wb") as f:
-        f.write(header.encode("ascii"))
-        f.write(vertices.tobytes())

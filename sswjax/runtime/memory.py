@@ -6,7 +6,7 @@ floored by what compiling the graph takes:
 coefficients were fitted (non-negative least squares of relative errors) to the peak resident
 memory (``ru_maxrss``) of fresh processes that read a pair and matched it on the CPU, and the
 floor is the peak of a tiny pair: ``python benchmarks/memory_model.py`` measures and fits, and
-its table is in the README ("Memory guard"). The terms:
+its table is in ``docs/speed-and-memory.md``. The terms:
 
 ``base``
     1: Python, NumPy, JAX and XLA's compiler and runtime.
@@ -17,24 +17,26 @@ its table is in the README ("Memory guard"). The terms:
     ``h * W`` of what one call of the graph sees (``h`` = the strip's rows plus its overlap, or
     ``H``): features, census codes, winners, refinement.
 ``slic``
-    ``h * W`` again when SLIC runs (``n_segments > 0`` and a stage uses the superpixels).
+    ``h * W`` again when SLIC runs (``params.segments`` is set).
 ``blocks``
-    ``h * W * min(K, D)`` with ``K = disparity_chunk``: the blocks of cost slices in flight when
+    ``h * W * min(K, D)`` with ``K = plan.disparity_chunk``: the blocks of cost slices in flight when
     the paper's selection folds them as they come.
 ``volume``
-    ``h * W * D`` when a whole volume is aggregated at once (``disparity_chunk = 0``).
+    ``h * W * D`` when a whole volume is aggregated at once (``plan.disparity_chunk = 0``).
 ``sgm``
     ``h * W * D`` with the semi-global optimiser: the aggregated volume stored in uint8 as it is
     built, its transposed copy and the paths' in-place int16 sum (and that sum transposed).
 ``sgm_wide``
-    ``h * W * D`` more when the volume is stored wider (``sgm_dtype`` ``"int16"`` or
+    ``h * W * D`` more when the volume is stored wider (``optimizer.dtype`` ``"int16"`` or
     ``"float32"``: the float32 volume written whole, then its two int16 copies).
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
 
-``MARGIN`` and ``SLACK`` make the model conservative: on every measured size the estimate is
-above the measured peak (by at most the factor stated in the README). The model describes the
-CPU backend with the ``ssw`` aggregator; other aggregators are estimated as ``ssw``.
+``h``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
+the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
+measured size the estimate is above the measured peak (by at most :data:`STATED_RATIO`). The
+model describes the CPU backend with the ``ssw`` aggregator; other aggregators are estimated as
+``ssw``.
 """
 
 from __future__ import annotations
@@ -43,24 +45,46 @@ import math
 import os
 from pathlib import Path
 
+from sswjax.config import Params, default_params
+from sswjax.runtime.buckets import bucket_shape
+from sswjax.runtime.plan import ExecutionPlan
+
 __all__ = ["MemoryEstimateError", "STRIP_HEIGHTS", "available_bytes", "check_memory",
-           "estimate_peak_bytes", "fit_in_memory", "format_gb", "memory_terms"]
+           "estimate_peak_bytes", "format_gb", "memory_terms", "plan_for_memory"]
 
 STRIP_HEIGHTS = (512, 384, 256, 192, 128, 96, 64, 48, 32, 16)
-"""Strip heights (rows) that :func:`fit_in_memory` tries, tallest first."""
+"""Strip heights (rows) that :func:`plan_for_memory` tries, tallest first."""
 
 
 class MemoryEstimateError(MemoryError):
     """The estimated peak memory of a call exceeds what is available (or the caller's limit).
 
-    Raised before any work; ``estimate`` and ``limit`` are in bytes, the message (one line)
-    says what to change.
+    Raised before any work, with a one-line message in the API's terms. The fields let a
+    caller say it in its own (the command line names its options).
+
+    Attributes
+    ----------
+    estimate, limit : int
+        Bytes: the estimate of the call as asked, and the bound it exceeds.
+    bound : str
+        Which bound: ``"the limit"`` (the caller's) or ``"the available memory"``.
+    shape : (int, int, int)
+        The pair's width, height and ndisp, as estimated.
+    strips : ExecutionPlan or None
+        The tallest strips that would fit, with their estimate in :attr:`strips_estimate`;
+        None when even the lowest do not.
     """
 
-    def __init__(self, message: str, *, estimate: int, limit: int):
+    def __init__(self, message: str, *, estimate: int, limit: int, bound: str = "the limit",
+                 shape=(0, 0, 0), strips: ExecutionPlan | None = None,
+                 strips_estimate: int | None = None):
         super().__init__(message)
         self.estimate = estimate
         self.limit = limit
+        self.bound = bound
+        self.shape = shape
+        self.strips = strips
+        self.strips_estimate = strips_estimate
 
 
 COEFFICIENTS: dict[str, float] = {
@@ -88,13 +112,14 @@ SLACK = 150_000_000
 to 0.48 GB) and for what the calling process holds besides."""
 
 STATED_RATIO = 1.6
-"""Estimates are between 1 and this many times the measured peak (README, tests), except
+"""Estimates are between 1 and this many times the measured peak (``docs/speed-and-memory.md``,
+tests), except
 where the compile floor decides: compiling may take less memory for some small shapes than
 for the tiny one measured, and the estimate is then a larger multiple of the peak."""
 
 
-def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
-                 buckets=None) -> dict[str, float]:
+def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None = None,
+                 plan: ExecutionPlan | None = None, channels: int = 3) -> dict[str, float]:
     """The model's terms for one call (see the module's docstring), in elements.
 
     Parameters
@@ -102,11 +127,12 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
     height, width, ndisp : int
         The pair's size and disparity count, as given to :func:`sswjax.match`.
     params : Params, optional
-        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
+        Default: the ``accurate`` preset (:func:`sswjax.config.default_params`).
+    plan : ExecutionPlan, optional
+        Strips, buckets (the terms then use the padded shape) and disparity blocks; default
+        ``ExecutionPlan()``.
     channels : int
         1 (gray) or 3 (colour) channels matched.
-    buckets : ShapeBuckets, optional
-        The terms then use the padded shape.
 
     Returns
     -------
@@ -117,42 +143,38 @@ def memory_terms(height: int, width: int, ndisp: int, *, params=None, channels: 
     >>> memory_terms(100, 200, 16)["blocks"]
     80000.0
     """
-    from sswjax.api import bucket_shape
-    from sswjax.params import default_params
-    from sswjax.registry import AGGREGATORS, FILLS, OPTIMIZERS
-
     params = default_params() if params is None else params
-    static = params.static
-    if buckets is not None:
-        height, width, ndisp = bucket_shape(height, width, ndisp, buckets)
+    plan = ExecutionPlan() if plan is None else plan
+    if plan.buckets is not None:
+        height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
     rows = height
-    window = static.strip_rows + 2 * static.strip_overlap
-    if static.strip_rows > 0 and window < height:
+    window = plan.strip_rows + 2 * plan.strip_overlap
+    if plan.strip_rows > 0 and window < height:
         rows = window
     plane = float(rows * width)
-    uses_segments = (AGGREGATORS[static.aggregation].uses_segments
-                     or OPTIMIZERS[static.optimizer].uses_segments
-                     or (static.lr_check and FILLS[static.fill].uses_segments))
+    levels = 0 if params.coarse is None else params.coarse.levels
     # Coarse-to-fine: the images and one plane at full size, the volumes on the halved pair.
-    matched = plane / 4 ** static.coarse_levels
-    ndisp = max(1, math.ceil(ndisp / 2 ** static.coarse_levels))
-    whole = static.disparity_chunk == 0 or static.disparity_chunk >= ndisp
-    sgm = OPTIMIZERS[static.optimizer].fn is not None
+    matched = plane / 4 ** levels
+    ndisp = max(1, math.ceil(ndisp / 2 ** levels))
+    chunk = plan.disparity_chunk
+    whole = chunk == 0 or chunk >= ndisp
+    optimizer = params.optimizer
+    sgm = optimizer is not None
     return {
         "base": 1.0,
         "image": float(height * width * channels),
         "window": plane,
-        "slic": matched if static.n_segments > 0 and uses_segments else 0.0,
-        "blocks": 0.0 if whole else matched * min(static.disparity_chunk, ndisp),
+        "slic": matched if params.segments is not None else 0.0,
+        "blocks": 0.0 if whole else matched * min(chunk, ndisp),
         "volume": matched * ndisp if whole else 0.0,
         "sgm": matched * ndisp if sgm else 0.0,
-        "sgm_wide": matched * ndisp if sgm and static.sgm_dtype != "uint8" else 0.0,
-        "sgm8": matched * ndisp if sgm and static.sgm_paths == 8 else 0.0,
+        "sgm_wide": matched * ndisp if sgm and optimizer.dtype != "uint8" else 0.0,
+        "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
     }
 
 
-def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
-                        buckets=None) -> int:
+def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params: Params | None = None,
+                        plan: ExecutionPlan | None = None, channels: int = 3) -> int:
     """Conservative estimate of the peak memory (bytes) of one :func:`sswjax.match` call.
 
     Includes the process itself (Python, JAX, the compiler): it is what the process's peak
@@ -163,12 +185,12 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, cha
     height, width, ndisp : int
         Image size and disparity count.
     params : Params, optional
-        Default: the ``accurate`` preset; ``disparity_chunk``, ``optimizer``, ``sgm_paths``,
-        ``strip_rows``/``strip_overlap`` and ``n_segments`` change the estimate.
+        Default: the ``accurate`` preset; the optimiser (its paths and storage), coarse-to-fine
+        and the superpixels change the estimate.
+    plan : ExecutionPlan, optional
+        Strips, buckets and disparity blocks change it too.
     channels : int
         Channels matched: 1 (gray) or 3 (colour).
-    buckets : ShapeBuckets, optional
-        Estimate the padded shape.
 
     Returns
     -------
@@ -176,9 +198,9 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, cha
 
     Examples
     --------
-    >>> import sswjax
-    >>> small = estimate_peak_bytes(497, 741, 70, params=sswjax.preset("accurate"))
-    >>> large = estimate_peak_bytes(1988, 2964, 280, params=sswjax.preset("accurate"))
+    >>> from sswjax.config import preset
+    >>> small = estimate_peak_bytes(497, 741, 70, params=preset("accurate"))
+    >>> large = estimate_peak_bytes(1988, 2964, 280, params=preset("accurate"))
     >>> large > 10 * small
     True
     """
@@ -187,17 +209,11 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params=None, cha
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     if channels not in (1, 3):
         raise ValueError(f"channels must be 1 or 3, got {channels!r}")
-    terms = memory_terms(height, width, ndisp, params=params, channels=channels, buckets=buckets)
+    params = default_params() if params is None else params
+    terms = memory_terms(height, width, ndisp, params=params, plan=plan, channels=channels)
     fitted = sum(COEFFICIENTS[name] * value for name, value in terms.items())
-    sgm = (params or _default_params()).static.optimizer != "none"
-    fitted = max(fitted, COMPILE_FLOOR["sgm" if sgm else "none"])
+    fitted = max(fitted, COMPILE_FLOOR["none" if params.optimizer is None else "sgm"])
     return int(MARGIN * fitted + SLACK)
-
-
-def _default_params():
-    from sswjax.params import default_params
-
-    return default_params()
 
 
 def _cgroup_free(root: Path) -> int | None:
@@ -255,17 +271,18 @@ def format_gb(value: float) -> str:
     return f"{value / 1e9:.2f} GB"
 
 
-def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
-                 buckets=None, limit: float | None = None) -> int:
+def check_memory(height: int, width: int, ndisp: int, *, params: Params | None = None,
+                 plan: ExecutionPlan | None = None, channels: int = 3,
+                 limit: float | None = None) -> int:
     """Raise :class:`MemoryEstimateError` if one call would not fit; return the estimate.
 
     Parameters
     ----------
-    height, width, ndisp, params, channels, buckets
+    height, width, ndisp, params, plan, channels
         As :func:`estimate_peak_bytes`.
     limit : float, optional
-        Bytes allowed (``--max-memory``); the available memory (:func:`available_bytes`)
-        applies as well. Without either (not Linux, no limit) nothing is checked.
+        Bytes allowed; the available memory (:func:`available_bytes`) applies as well.
+        Without either (not Linux, no limit) nothing is checked.
 
     Returns
     -------
@@ -276,60 +293,59 @@ def check_memory(height: int, width: int, ndisp: int, *, params=None, channels: 
     >>> check_memory(100, 200, 16, limit=1e6)
     Traceback (most recent call last):
     ...
-    sswjax.memory.MemoryEstimateError: ...
+    sswjax.runtime.memory.MemoryEstimateError: ...
     """
-    from sswjax.params import default_params
-
     params = default_params() if params is None else params
-    estimate = estimate_peak_bytes(height, width, ndisp, params=params, channels=channels,
-                                   buckets=buckets)
+    plan = ExecutionPlan() if plan is None else plan
+    estimate = estimate_peak_bytes(height, width, ndisp, params=params, plan=plan,
+                                   channels=channels)
     bound, what = _bound(limit)
     if bound is None or estimate <= bound:
         return estimate
-    raise _refusal(height, width, ndisp, estimate, bound, what,
-                   _tallest_strips(height, width, ndisp, params, channels, buckets, bound),
-                   channels=channels, buckets=buckets)
+    shape = (height, width, ndisp)
+    strips = _tallest_strips(shape, params, plan, channels, bound)
+    raise _refusal(shape, estimate, bound, what, params, channels, strips)
 
 
-def fit_in_memory(height: int, width: int, ndisp: int, *, params=None, channels: int = 3,
-                  buckets=None, limit: float | None = None):
-    """The parameters with which one call fits in memory: strips chosen when they must be.
+def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | None = None,
+                    plan: ExecutionPlan | None = None, channels: int = 3,
+                    limit: float | None = None) -> ExecutionPlan:
+    """The plan with which one call fits in memory: strips chosen when they must be.
 
-    With ``params.static.strip_rows == 0`` (the whole image) and an estimate above the bound,
-    the pair is matched in the tallest strips of :data:`STRIP_HEIGHTS` that fit (the overlap
-    capped at the strip's height); with explicit strips, or when the whole image fits, the
-    parameters come back unchanged. Nothing fits: :class:`MemoryEstimateError`, as
-    :func:`check_memory` raises it.
+    With ``plan.strip_rows == 0`` (the whole image) and an estimate above the bound, the pair
+    is matched in the tallest strips of :data:`STRIP_HEIGHTS` that fit (the overlap capped at
+    the strip's height); with explicit strips, or when the whole image fits, the plan comes
+    back unchanged. Nothing fits: :class:`MemoryEstimateError`, as :func:`check_memory`
+    raises it.
 
     Parameters
     ----------
-    height, width, ndisp, params, channels, buckets, limit
+    height, width, ndisp, params, plan, channels, limit
         As :func:`check_memory`.
 
     Returns
     -------
-    Params
+    ExecutionPlan
 
     Examples
     --------
-    >>> import sswjax
-    >>> fitted = fit_in_memory(1988, 2964, 280, params=sswjax.preset("accurate"), limit=6e9)
-    >>> 0 < fitted.static.strip_rows < 1988
+    >>> from sswjax.config import preset
+    >>> fitted = plan_for_memory(1988, 2964, 280, params=preset("accurate"), limit=6e9)
+    >>> 0 < fitted.strip_rows < 1988
     True
     """
-    from sswjax.params import default_params
-
     params = default_params() if params is None else params
-    estimate = estimate_peak_bytes(height, width, ndisp, params=params, channels=channels,
-                                   buckets=buckets)
+    plan = ExecutionPlan() if plan is None else plan
+    estimate = estimate_peak_bytes(height, width, ndisp, params=params, plan=plan,
+                                   channels=channels)
     bound, what = _bound(limit)
     if bound is None or estimate <= bound:
-        return params
-    strips = _tallest_strips(height, width, ndisp, params, channels, buckets, bound)
-    if strips is not None and not params.static.strip_rows:
+        return plan
+    shape = (height, width, ndisp)
+    strips = _tallest_strips(shape, params, plan, channels, bound)
+    if strips is not None and not plan.strip_rows:
         return strips
-    raise _refusal(height, width, ndisp, estimate, bound, what, strips, channels=channels,
-                   buckets=buckets)
+    raise _refusal(shape, estimate, bound, what, params, channels, strips)
 
 
 def _bound(limit):
@@ -340,34 +356,33 @@ def _bound(limit):
     return min(bounds) if bounds else (None, None)
 
 
-def _tallest_strips(height, width, ndisp, params, channels, buckets, bound):
-    """``params`` with the tallest strips of :data:`STRIP_HEIGHTS` (lower than the current
+def _tallest_strips(shape, params, plan, channels, bound):
+    """``plan`` with the tallest strips of :data:`STRIP_HEIGHTS` (lower than the current
     ones, if any, and than the image) whose estimate fits under ``bound``; None if none."""
-    static = params.static
+    height, width, ndisp = shape
     for rows in STRIP_HEIGHTS:
-        if rows >= height or (static.strip_rows and rows >= static.strip_rows):
+        if rows >= height or (plan.strip_rows and rows >= plan.strip_rows):
             continue
-        trial = params.replace(strip_rows=rows, strip_overlap=min(static.strip_overlap, rows))
-        if estimate_peak_bytes(height, width, ndisp, params=trial, channels=channels,
-                               buckets=buckets) <= bound:
+        trial = plan._replace(strip_rows=rows, strip_overlap=min(plan.strip_overlap, rows))
+        if estimate_peak_bytes(height, width, ndisp, params=params, plan=trial,
+                               channels=channels) <= bound:
             return trial
     return None
 
 
-def _refusal(height, width, ndisp, estimate, bound, what, strips, *, channels, buckets
-             ) -> MemoryEstimateError:
-    """The one-line refusal, with what to change: ``strips`` (the tallest that fit, from
-    :func:`_tallest_strips`), else a smaller ndisp or image."""
+def _refusal(shape, estimate, bound, what, params, channels, strips) -> MemoryEstimateError:
+    """The one-line refusal, with what to change in the API's terms: ``strips`` (the tallest
+    that fit, from :func:`_tallest_strips`), else a smaller ndisp or image."""
+    height, width, ndisp = shape
+    fitted = None
     if strips is None:
-        advice = ("a smaller ndisp or image (even strips of 16 rows do not fit), or a larger "
-                  "--max-memory")
+        advice = "a smaller ndisp or image (even strips of 16 rows do not fit), or a larger limit"
     else:
-        rows = strips.static.strip_rows
-        fitted = estimate_peak_bytes(height, width, ndisp, params=strips, channels=channels,
-                                     buckets=buckets)
-        advice = (f"match in strips with --params holding \"strip_rows\": {rows} "
-                  f"(Params.strip_rows={rows}, about {format_gb(fitted)}), or a smaller ndisp or "
-                  "image")
+        fitted = estimate_peak_bytes(height, width, ndisp, params=params, plan=strips,
+                                     channels=channels)
+        advice = (f"match in strips with plan=sswjax.ExecutionPlan(strip_rows="
+                  f"{strips.strip_rows}) (about {format_gb(fitted)}), or a smaller ndisp or image")
     return MemoryEstimateError(
         f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
-        f"{what} ({format_gb(bound)}): {advice}", estimate=estimate, limit=int(bound))
+        f"{what} ({format_gb(bound)}): {advice}", estimate=estimate, limit=int(bound),
+        bound=what, shape=(width, height, ndisp), strips=strips, strips_estimate=fitted)

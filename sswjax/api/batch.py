@@ -2,16 +2,16 @@
 
 Conventions: a batch is float32 ``(B, H, W, C)`` (C in {1, 3}, values in [0, 1]) for the left
 and right images; the result is float32 ``(B, H, W)``. The batch axis is split over a 1-D device
-mesh (``jax.sharding``, axis ``"batch"``: :func:`device_mesh`), so the same code uses every CPU
-device (``XLA_FLAGS=--xla_force_host_platform_device_count=N``), GPU or TPU core; a batch whose
+mesh (:func:`sswjax.runtime.devices.device_mesh`), so the same code uses every CPU device
+(``XLA_FLAGS=--xla_force_host_platform_device_count=N``), GPU or TPU core; a batch whose
 size is not a multiple of the device count is padded with copies of its last pair
-(:func:`pad_batch`), then cropped.
+(:func:`~sswjax.runtime.devices.pad_batch`), then cropped.
 
 Two entry points: :func:`match_batch` runs equal-size pairs in one call (``B / devices`` pairs
 per device); :func:`match_scenes` (and :func:`iter_match_scenes`, which yields each map as soon
-as it is done) runs pairs of different sizes, grouped by :func:`~sswjax.pipeline.bucket_shape`
-and padded as ``sswjax.match(..., buckets=)`` pads them, one pair per device per call, so a call
-never holds more than one cost volume per device.
+as it is done) runs pairs of different sizes, grouped by
+:func:`~sswjax.runtime.buckets.bucket_shape` and padded as ``sswjax.match(..., buckets=)`` pads
+them, one pair per device per call, so a call never holds more than one cost volume per device.
 """
 
 from __future__ import annotations
@@ -25,61 +25,26 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from sswjax._checks import check_rank, check_same_shape
-from sswjax.params import Params, check_params, default_params
-from sswjax.api import ShapeBuckets, bucket_shape, checked_pair, pad_to_bucket
-from sswjax.pipeline import ssw_disparity
+from sswjax.api.images import checked_pair
+from sswjax.config import Params, check_params, default_params
+from sswjax.graph import DEFAULT_CHUNK, ssw_disparity
+from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
+from sswjax.runtime.devices import BATCH_AXIS, device_mesh, pad_batch
 
-BATCH_AXIS = "batch"
-"""Name of the mesh axis the batch is split over."""
-
-
-def device_mesh(*, devices: Sequence[jax.Device] | None = None) -> Mesh:
-    """1-D mesh with axis :data:`BATCH_AXIS` over ``devices`` (default: all ``jax.devices()``).
-
-    Examples
-    --------
-    >>> device_mesh().axis_names
-    ('batch',)
-    """
-    devices = list(jax.devices() if devices is None else devices)
-    if not devices:
-        raise ValueError("devices is empty")
-    return Mesh(np.array(devices), (BATCH_AXIS,))
+__all__ = ["iter_match_scenes", "match_batch", "match_scenes"]
 
 
-def pad_batch(arrays: Sequence[np.ndarray], multiple: int) -> tuple[np.ndarray, ...]:
-    """Pad the leading axis of the arrays to a multiple of ``multiple`` with copies of the last row.
-
-    Parameters
-    ----------
-    arrays : sequence of numpy.ndarray (B, ...), one B for all, B >= 1
-    multiple : int >= 1
-
-    Returns
-    -------
-    tuple of numpy.ndarray (ceil(B / multiple) * multiple, ...)
-
-    Examples
-    --------
-    >>> pad_batch([np.arange(3)], 2)[0].tolist()
-    [0, 1, 2, 2]
-    """
-    arrays = [np.asarray(a) for a in arrays]
-    size = arrays[0].shape[0]
-    extra = -size % multiple
-    return tuple(np.concatenate([a, np.repeat(a[-1:], extra, axis=0)]) if extra else a
-                 for a in arrays)
-
-
-@functools.partial(jax.jit, static_argnames=("ndisp",))
-def _batched(lefts, rights, valid_ndisps, params, *, ndisp):
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def _batched(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
     def one(left, right, valid_ndisp):
-        return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp)
+        return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
+                             chunk=chunk)
 
     return jax.vmap(one)(lefts, rights, valid_ndisps)
 
 
-def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: Mesh) -> np.ndarray:
+def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: Mesh,
+                 chunk: int = DEFAULT_CHUNK) -> np.ndarray:
     """``ssw_disparity`` of a batch split over ``mesh`` (padded to a multiple of its size).
 
     ``valid_ndisps``: int32 ``(B,)`` traced search ranges, or ``None`` for ``ndisp`` each.
@@ -90,7 +55,7 @@ def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: 
     sharded = jax.device_put(pad_batch(arrays, mesh.size), sharding)
     if valid_ndisps is None:
         sharded += (None,)
-    return np.asarray(_batched(*sharded, params, ndisp=ndisp))[:size]
+    return np.asarray(_batched(*sharded, params, ndisp=ndisp, chunk=chunk))[:size]
 
 
 def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devices=None) -> np.ndarray:
@@ -101,7 +66,7 @@ def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devi
     lefts, rights : array_like (B, H, W) or (B, H, W, 1|3|4), uint8, uint16 or float
     ndisp : int, 1 <= ndisp < W
     params : Params, optional
-        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
+        Default: the ``accurate`` preset (:func:`sswjax.config.default_params`).
     devices : sequence of jax.Device, optional
         Default: all of ``jax.devices()``.
 
@@ -113,7 +78,8 @@ def match_batch(lefts, rights, ndisp: int, *, params: Params | None = None, devi
     --------
     >>> import numpy as np
     >>> r = np.random.default_rng(0).random((3, 24, 40, 3), dtype=np.float32)
-    >>> match_batch(np.roll(r, 2, axis=2), r, 8, params=Params().replace(n_segments=8)).shape
+    >>> small = Params().replace(**{"segments.n_segments": 8})
+    >>> match_batch(np.roll(r, 2, axis=2), r, 8, params=small).shape
     (3, 24, 40)
     """
     lefts, rights = np.asarray(lefts), np.asarray(rights)
@@ -137,7 +103,7 @@ def iter_match_scenes(
 ) -> Iterator[tuple[int, np.ndarray, float]]:
     """Disparity maps of pairs of different sizes, grouped by bucket, one pair per device per call.
 
-    Pairs are grouped by their padded shape (:func:`~sswjax.pipeline.bucket_shape` and the
+    Pairs are grouped by their padded shape (:func:`~sswjax.runtime.buckets.bucket_shape` and the
     channel count), groups in order of their first pair; each pair is edge-padded at the bottom
     and right as ``sswjax.match(..., buckets=buckets)`` pads it, and its own ``ndisp`` is passed
     as the traced ``valid_ndisp``. A group runs in steps of ``len(devices)`` pairs, one per
@@ -152,7 +118,7 @@ def iter_match_scenes(
     ndisps : sequence of int
         Each pair's search range 0 .. ndisp - 1, 1 <= ndisp < W.
     params : Params, optional
-        Default: the ``accurate`` preset (:func:`sswjax.params.default_params`).
+        Default: the ``accurate`` preset (:func:`sswjax.config.default_params`).
     buckets : ShapeBuckets
         Shape bucketing (default ``ShapeBuckets()``); each distinct bucket compiles once.
     devices : sequence of jax.Device, optional
@@ -211,7 +177,7 @@ def match_scenes(
     >>> rng = np.random.default_rng(0)
     >>> rights = [rng.random((h, w, 3), dtype=np.float32) for h, w in ((24, 40), (20, 44))]
     >>> pairs = [(np.roll(r, 2, axis=1), r) for r in rights]
-    >>> maps = match_scenes(pairs, [8, 6], params=Params().replace(n_segments=8),
+    >>> maps = match_scenes(pairs, [8, 6], params=Params().replace(**{"segments.n_segments": 8}),
     ...                     buckets=ShapeBuckets(size_step=32, ndisp_step=8))
     >>> [m.shape for m in maps]
     [(24, 40), (20, 44)]

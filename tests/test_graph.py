@@ -1,4 +1,5 @@
-"""End-to-end tests of the SSW pipeline: known shifts, batching, input handling, a real pair."""
+"""End-to-end tests of the jitted graph and the front door: known shifts, batching, input
+handling, the occlusion tests, a real pair."""
 
 import jax
 import jax.numpy as jnp
@@ -7,8 +8,12 @@ import pytest
 from skimage import data
 
 import sswjax
-from sswjax import Params, ssw_disparity
+from sswjax import ConfigError, Params, ssw_disparity
+from sswjax.api.images import prepare_pair, to_float_image
+from sswjax.config import SemiGlobal
+from sswjax.graph.volume import right_view
 from sswjax.stages.color import rgb_to_gray
+from sswjax.stages.reference import right_cost_volume, winner_takes_all
 
 H, W, SHIFT, NDISP = 48, 96, 7, 16
 # pixels whose match lies well inside the right image (aggregation / census support included)
@@ -60,14 +65,11 @@ def test_cost_stored_as_built_equals_the_volume_quantised_after(pair, monkeypatc
     # The pipeline quantises each aggregated block as the scan builds it (the float32 volume is
     # never written); the map must be that of quantising the whole volume inside the paths,
     # with and without the out-of-range disparities of a traced range.
-    from sswjax import registry
-
     left, right = map(jnp.asarray, pair)
     params = sswjax.preset("accurate").replace(sgm_dtype="uint8")
     run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
     stored = [run(left, right, None), run(left, right, NDISP - 3)]
-    monkeypatch.setitem(registry.OPTIMIZERS, "sgm",
-                        registry.OPTIMIZERS["sgm"]._replace(storage=None))
+    monkeypatch.setattr(SemiGlobal, "storage", lambda self, cost_bound: None)
     jax.clear_caches()                  # ssw_disparity's trace would otherwise be reused
     run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
     after = [run(left, right, None), run(left, right, NDISP - 3)]
@@ -135,8 +137,6 @@ def test_match_accepts_uint8_uint16_float_and_rgba(pair, integer_params):
 
 
 def test_prepare_pair_conversions():
-    from sswjax.api import prepare_pair
-
     rng = np.random.default_rng(8)
     rgb8 = rng.integers(0, 256, size=(5, 6, 3), dtype=np.uint8)
     rgb16 = rng.integers(0, 65536, size=(5, 6, 3), dtype=np.uint16)
@@ -224,30 +224,18 @@ def test_ssw_disparity_rejects_bad_pairs():
 
 
 # ---------------------------------------------------------------------------------------------
-# the two halves of the graph: aggregated_cost, then select_and_refine
+# the aggregated cost is the volume the graph selects from
 
 
-@pytest.mark.parametrize("subpixel", [False, True])
-def test_select_and_refine_of_aggregated_cost_is_the_whole_volume_method(pair, subpixel):
+@pytest.mark.parametrize("chunk", [0, 4])
+def test_winners_of_the_aggregated_cost_are_the_integer_map(pair, chunk):
     left, right = (jnp.asarray(im[:32, :64]) for im in pair)
-    params = Params().replace(n_segments=24, subpixel=subpixel, disparity_chunk=0)
-    halves = jax.jit(
-        lambda l, r, p: sswjax.select_and_refine(sswjax.aggregated_cost(l, r, p, ndisp=NDISP), p)
-    )
-    two_steps = np.asarray(halves(left, right, params))
-    whole = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP))
-    assert two_steps.shape == (32, 64) and two_steps.dtype == np.float32
-    np.testing.assert_array_equal(two_steps, whole)
-    assert np.median(two_steps[:, SHIFT + MARGIN :]) == pytest.approx(SHIFT, abs=1e-3)
-
-
-def test_select_and_refine_checks_the_cost():
-    with pytest.raises(ValueError, match=r"^cost must have rank 3, got shape \(8, 16\)$"):
-        sswjax.select_and_refine(jnp.zeros((8, 16)), Params())
-    with pytest.raises(ValueError, match=r"^cost must have rank 3, got shape \(1, 4, 8, 16\)$"):
-        sswjax.select_and_refine(jnp.zeros((1, 4, 8, 16)), Params())
-    with pytest.raises(TypeError, match=r"^cost must have a floating dtype, got int32$"):
-        sswjax.select_and_refine(jnp.zeros((4, 8, 16), jnp.int32), Params())
+    params = Params().replace(n_segments=24, subpixel=False, lr_check=False, refine_radius=0)
+    cost = sswjax.aggregated_cost(left, right, params, ndisp=NDISP)
+    assert cost.shape == (NDISP, 32, 64) and cost.dtype == jnp.float32
+    whole = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP, chunk=chunk))
+    np.testing.assert_array_equal(np.asarray(winner_takes_all(cost)), whole)
+    assert np.median(whole[:, SHIFT + MARGIN :]) == pytest.approx(SHIFT, abs=1e-3)
 
 
 def layered_pair(seed: int = 1):
@@ -288,13 +276,9 @@ def test_right_view_of_a_stored_volume_is_its_argmin(chunk, limit, dtype):
     """The right view read block by block from the stored volume equals the argmin of the
     whole volume's right view, disparities at or beyond a traced limit excluded (ties to the
     smaller disparity; uint8 volumes have many)."""
-    from sswjax import pipeline
-    from sswjax.stages.refinement import right_cost_volume
-
     rng = np.random.default_rng(chunk + limit)
     volume = rng.integers(0, 6, size=(NDISP, 12, 40)).astype(dtype)
-    view = jax.jit(lambda v, t: pipeline._right_view(v, t, chunk))(jnp.asarray(volume),
-                                                                   jnp.int32(limit))
+    view = jax.jit(lambda v, t: right_view(v, t, chunk))(jnp.asarray(volume), jnp.int32(limit))
     inside = volume[:limit].astype(np.float32)
     expected = np.argmin(np.asarray(right_cost_volume(jnp.asarray(inside))), axis=0)
     np.testing.assert_array_equal(np.asarray(view), expected)
@@ -307,16 +291,11 @@ def test_aggregated_check_only_adds_rejections():
     on = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=1), ndisp=NDISP)
     assert bool(jnp.all(on.lr_failed | ~off.lr_failed))
     assert bool(jnp.any(on.lr_failed & ~off.lr_failed))
-    # without an optimiser the winners' right view is the aggregated one: nothing to add
-    paper = sswjax.preset("paper").replace(n_segments=0)
-    assert bool(jnp.all(sswjax.ssw_outputs(left, right, paper, ndisp=NDISP).lr_failed ==
-                        sswjax.ssw_outputs(left, right, paper.replace(aggregated_lr_gap=1),
-                                           ndisp=NDISP).lr_failed))
-
-
-def test_select_and_refine_refuses_the_uniqueness_test():
-    with pytest.raises(ValueError, match="uniqueness_gap > 0 needs the images"):
-        sswjax.select_and_refine(jnp.zeros((4, 8, 16)), Params().replace(uniqueness_gap=2))
+    # without an optimiser the winners' right view is the aggregated one: nothing to add, and
+    # the option is refused
+    with pytest.raises(ConfigError, match="aggregated_lr_gap acts only with lr_check and an "
+                                          "optimizer"):
+        sswjax.preset("paper").replace(aggregated_lr_gap=1)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -340,8 +319,6 @@ def test_motorcycle_error_bound():
 
 
 def test_to_float_image():
-    from sswjax.api import to_float_image
-
     np.testing.assert_array_equal(to_float_image(np.array([[0, 255]], np.uint8))[..., 0], [[0, 1]])
     out = to_float_image(np.array([[0, 65535]], np.uint16))
     assert out.dtype == np.float32 and out.shape == (1, 2, 1)
@@ -353,8 +330,6 @@ def test_to_float_image():
 
 
 def test_to_float_image_errors():
-    from sswjax.api import to_float_image
-
     with pytest.raises(ValueError, match="got bool"):
         to_float_image(np.zeros((2, 2), bool))
     with pytest.raises(ValueError, match="got int32"):

@@ -1,0 +1,106 @@
+"""The user's images at the front door: checked and converted to what the graph takes.
+
+Array conventions (whole module): user images are NumPy-like ``(H, W)`` or ``(H, W, 1|3|4)``
+arrays of uint8, uint16 or floats in [0, 1]; they are converted to float32 ``(H, W, C)`` in
+[0, 1], C in {1, 3}, for :mod:`sswjax.graph`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sswjax.config import Params
+from sswjax.stages.color import rgb_to_gray
+
+__all__ = ["checked_pair", "prepare_pair", "to_float_image"]
+
+
+def to_float_image(image, *, name: str = "image") -> np.ndarray:
+    """The one conversion of a user's image to the pipeline's float32 ``(H, W, C)`` in [0, 1].
+
+    Parameters
+    ----------
+    image : array_like (H, W) or (H, W, 1|3|4)
+        uint8 (divided by 255), uint16 (divided by 65535) or floating (used as given, assumed in
+        [0, 1], must be finite in float32). Alpha is dropped.
+    name : str
+        How error messages call the image (``"left"``, ``"right"``).
+
+    Returns
+    -------
+    numpy.ndarray float32 (H, W, C), C in {1, 3} (a new array)
+
+    Raises
+    ------
+    ValueError
+        On a bad shape, an empty image, another dtype (bool, int32, ...) or non-finite values.
+
+    Examples
+    --------
+    >>> to_float_image(np.array([[0, 255]], dtype=np.uint8))[..., 0]
+    array([[0., 1.]], dtype=float32)
+    """
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.ndim != 3 or image.shape[-1] not in (1, 3, 4):
+        raise ValueError(f"{name} image must be HxW, HxWx1, HxWx3 or HxWx4, got shape {image.shape}")
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise ValueError(f"{name} image is empty, got shape {image.shape}")
+    image = image[..., :3]
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / np.float32(255)
+    if image.dtype == np.uint16:
+        return image.astype(np.float32) / np.float32(65535)
+    if not np.issubdtype(image.dtype, np.floating):
+        raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        image = image.astype(np.float32)
+    if not np.isfinite(image).all():
+        raise ValueError(f"{name} image contains NaN or infinite values")
+    return image
+
+
+def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a user's pair and convert it to float32 ``(H, W, C)`` in [0, 1].
+
+    Each image goes through :func:`to_float_image`. If one image is gray and the other colour,
+    both are used as gray (BT.601 luma of the colour one).
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
+    """
+    left, right = to_float_image(left, name="left"), to_float_image(right, name="right")
+    if left.shape[:2] != right.shape[:2]:
+        raise ValueError(
+            f"left and right images differ in size: {left.shape[1]}x{left.shape[0]} "
+            f"and {right.shape[1]}x{right.shape[0]}"
+        )
+    if left.shape[-1] != right.shape[-1]:
+        left, right = (
+            np.asarray(rgb_to_gray(im))[..., None] if im.shape[-1] == 3 else im
+            for im in (left, right)
+        )
+    return left, right
+
+
+def checked_pair(left, right, ndisp, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`prepare_pair` plus the checks of :func:`match` on ``ndisp`` and on the image size.
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
+    """
+    if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
+        raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
+    left, right = prepare_pair(left, right)
+    if not 1 <= ndisp < left.shape[1]:
+        raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
+    census = (params.cost.census_width, params.cost.census_height)
+    if min(left.shape[:2]) < max(census):
+        raise ValueError(
+            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
+            f"{census[0]}x{census[1]}: both sides must be at least {max(census)} pixels"
+        )
+    return left, right

@@ -1,0 +1,17 @@
+"""The jitted graph: the stages composed into the method, for one pair of JAX arrays.
+
+==========  =====================================================================================
+``scopes``  the stage names of the compiled graph (``jax.named_scope``), an enum
+``volume``  the scene a call shares; the volume built in blocks, optimised, folded into winners
+``refine``  sub-pixel fit, the checks, the fill, the median (Eq. 8-9)
+``coarse``  coarse-to-fine: the method on the pair halved, the map doubled back
+``match``   the jitted entry points: ``ssw_disparity``, ``ssw_outputs``, ``ssw_cues``
+==========  =====================================================================================
+"""
+
+from sswjax.graph.match import (DEFAULT_CHUNK, SSWOutputs, aggregated_cost, ssw_cues, ssw_disparity,
+                                ssw_outputs)
+from sswjax.graph.scopes import Stage
+
+__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "Stage", "aggregated_cost", "ssw_cues", "ssw_disparity",
+           "ssw_outputs"]

@@ -1,0 +1,174 @@
+"""The jitted graph: the stages of :mod:`sswjax.stages` composed into the SSW method.
+
+Array conventions (whole module): the pure functions take images float32 ``(H, W, C)`` with
+C in {1, 3} and values in [0, 1], a :class:`~sswjax.config.Params` pytree, a static ``ndisp``
+and a static ``chunk`` (disparities per block of the volume's scans, an execution choice that
+does not change the result); they return float32 ``(H, W)`` disparities in pixels, dense, in
+[0, ndisp - 1]. The NumPy front door (validation, conversion, shape buckets, strips) is
+:mod:`sswjax.api`.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import jax
+
+from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
+from sswjax.config import Params
+from sswjax.graph.coarse import match_coarse_to_fine
+from sswjax.graph.refine import refine
+from sswjax.graph.volume import (Selected, aggregate_slices, prepare_scene, select_optimised,
+                                 streamed_winners)
+from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
+
+__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "aggregated_cost", "check_pair", "match_maps",
+           "ssw_cues", "ssw_disparity", "ssw_outputs"]
+
+DEFAULT_CHUNK = 4
+"""Disparities per block of the volume's scans: memory for about ``3 K`` slices instead of the
+volume; K = 4 was fastest on XLA CPU (2x faster than the whole volume: the blocks stay in
+cache)."""
+
+
+def check_pair(left, right, ndisp: int) -> None:
+    """Entry checks of the graph: float (H, W, C) images of one shape, C in {1, 3}, and
+    ``1 <= ndisp < W``."""
+    check_rank("left", left, 3)
+    check_floating("left", left)
+    check_same_shape("left", left, "right", right)
+    if left.shape[-1] not in (1, 3):
+        raise ValueError(f"images must have 1 or 3 channels, got shape {tuple(left.shape)}")
+    check_positive_int("ndisp", ndisp)
+    if ndisp >= left.shape[1]:
+        raise ValueError(f"ndisp must be smaller than the image width {left.shape[1]}, got {ndisp}")
+
+
+def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int) -> jax.Array:
+    """Eq. (5)-(7) of the pair as given: matching cost, superpixels and aggregation.
+
+    The whole volume at once, before any optimiser (for analyses).
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+    ndisp : int, 1 <= ndisp < W
+
+    Returns
+    -------
+    float32 (ndisp, H, W), lower is better.
+    """
+    check_pair(left, right, ndisp)
+    return aggregate_slices(prepare_scene(left, right, params), params, 0, ndisp)
+
+
+def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
+               ) -> tuple[jax.Array, ConfidenceCues]:
+    """The body of :func:`ssw_disparity`: the map and its confidence cues.
+
+    Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
+    optimiser the volume is stored, optimised and folded; without one each block is folded
+    as soon as it is aggregated.
+    """
+    check_pair(left, right, ndisp)
+    if params.coarse is not None:
+        inner = functools.partial(match_maps, chunk=chunk)
+        return match_coarse_to_fine(left, right, params, ndisp, valid_ndisp, inner)
+    limit = ndisp if valid_ndisp is None else valid_ndisp
+    scene = prepare_scene(left, right, params)
+    if params.optimizer is None:
+        selected = Selected(streamed_winners(scene, params, ndisp=ndisp, limit=limit,
+                                             chunk=chunk))
+    else:
+        selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
+                                    chunk=chunk)
+    return refine(selected, scene, params, limit)
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
+                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK) -> jax.Array:
+    """The whole SSW method as one jitted pure function.
+
+    The static options of ``params`` and its choice of stages are pytree structure, so
+    changing one (or the image size, ``ndisp`` or ``chunk``) recompiles; its traced options
+    are traced. ``jax.vmap`` batches it over pairs of one size:
+    ``jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=n))(lefts, rights)``.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+    ndisp : int, 1 <= ndisp < W
+        Size of the disparity volume (static: a new value recompiles).
+    valid_ndisp : int32 scalar, optional
+        Traced search range ``0 .. valid_ndisp - 1`` within the volume (default ``ndisp``):
+        shape bucketing runs a padded ``ndisp`` and passes the true one here.
+    chunk : int >= 0
+        K > 0 (default :data:`DEFAULT_CHUNK`): disparities K at a time with a running minimum
+        of both views, memory for a few ``(K, H, W)`` blocks; 0: the whole volume at once.
+
+    Returns
+    -------
+    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
+    """
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk)[0]
+
+
+class SSWOutputs(NamedTuple):
+    """What :func:`ssw_outputs` returns, all ``(H, W)``: the dense disparity (float32, as
+    :func:`ssw_disparity`), its confidence (float32 in [0, 1], higher = more reliable) and the
+    pixels the checks rejected and the fill filled (bool)."""
+
+    disparity: jax.Array
+    confidence: jax.Array
+    lr_failed: jax.Array
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
+def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
+                valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE
+                ) -> SSWOutputs:
+    """:func:`ssw_disparity` with the confidence of each pixel, in one jitted graph.
+
+    The same graph as :func:`ssw_disparity` (which keeps only the map; ``jit`` drops the rest)
+    plus the confidence measure of :mod:`sswjax.stages.confidence` on the cues it gathers.
+
+    Parameters
+    ----------
+    left, right, params, ndisp, valid_ndisp, chunk
+        As for :func:`ssw_disparity`.
+    measure : str
+        A key of :data:`sswjax.stages.confidence.MEASURES` (static).
+
+    Returns
+    -------
+    SSWOutputs
+        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> image = jnp.linspace(0, 1, 40 * 48).reshape(40, 48, 1) ** 2
+    >>> out = ssw_outputs(image, image, Params().replace(**{"segments.n_segments": 8}), ndisp=8)
+    >>> out.confidence.shape, str(out.confidence.dtype)
+    ((40, 48), 'float32')
+    """
+    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk)
+    return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def ssw_cues(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None,
+             chunk: int = DEFAULT_CHUNK) -> tuple[jax.Array, ConfidenceCues]:
+    """The dense disparity of :func:`ssw_disparity` and the raw cues of its confidence.
+
+    For analyses that compare confidence measures on one run (``benchmarks/sparsification.py``).
+
+    Returns
+    -------
+    (float32 (H, W), ConfidenceCues)
+    """
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk)
