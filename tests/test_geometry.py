@@ -1,11 +1,14 @@
-"""Depth maps, point clouds, PLY files and calibration files (``sswjax.geometry``)."""
+"""Depth maps and point clouds (``sswjax.api.geometry``), PLY files (``sswjax.data.ply``) and
+calibration files (``sswjax.data.calibration``)."""
 
 import numpy as np
 import pytest
 
 import sswjax
 from sswjax.data.io import InputError
-from sswjax.geometry import Calibration, depth_from_disparity, point_cloud, read_calibration, write_ply
+from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
+from sswjax.data.calibration import read_calibration
+from sswjax.data.ply import write_ply
 
 MOTORCYCLE_CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
 cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]

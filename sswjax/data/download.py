@@ -2,7 +2,8 @@
 
 :func:`download_middeval3` unpacks the archives of one resolution ``R`` (``Q``, ``H``, ``F``)
 into ``dest/MiddEval3/{trainingR,testR}/<Scene>/`` (``im0.png``, ``im1.png``, ``calib.txt``,
-and for training ``disp0GT.pfm``, ``mask0nocc.png``), which ``load_middeval3`` reads.
+and for training ``disp0GT.pfm``, ``mask0nocc.png``), which
+:func:`sswjax.data.layouts.load_scenes` reads.
 :func:`download_eth3d` unpacks ETH3D's ``two_view_training.7z`` and ``two_view_training_gt.7z``
 into ``dest/ETH3D/`` (the layout :mod:`sswjax.data.layouts` reads); 7z needs ``py7zr`` (extra
 ``[eth3d]``). KITTI cannot be fetched: its site needs a registration (:data:`KITTI_HOWTO`).
@@ -10,7 +11,7 @@ into ``dest/ETH3D/`` (the layout :mod:`sswjax.data.layouts` reads); 7z needs ``p
 Conventions: pooch fetches, checks hashes when known and moves archives into place; ours is
 only what it lacks: resuming (:class:`ResumingDownloader`, with progress bar and size check),
 safe atomic extraction, and one-line errors naming the URL or file, :class:`DownloadError`
-(network, HTTP, size, checksum) or :class:`~sswjax.data.files.InputError` (files, bad archives).
+(network, HTTP, size, checksum) or :class:`~sswjax._files.InputError` (files, bad archives).
 :data:`MIDDEVAL3_REGISTRY` maps an archive to ``(size in bytes, "sha256:<hex>")``, each
 ``None`` while unknown (Middlebury publishes no checksums; pooch then gets ``known_hash=None``):
 sizes are checked against it and the server's announcement, zip CRCs always. Downloads go to
@@ -35,7 +36,7 @@ from urllib.request import Request, urlopen
 import pooch
 from tqdm import tqdm
 
-from sswjax.data.files import InputError, atomic_output, reason
+from sswjax._files import InputError, atomic_output, reason
 
 __all__ = ["DEFAULT_BASE_URL", "MIDDEVAL3_ARCHIVES", "MIDDEVAL3_REGISTRY", "DownloadError",
            "ResumingDownloader", "download_middeval3", "middeval3_urls", "ETH3D_BASE_URL",

@@ -26,7 +26,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax.data.files import InputError, atomic_output, first_line, reason
+from sswjax._files import InputError, atomic_output, first_line, reason
 
 __all__ = [
     "InputError",

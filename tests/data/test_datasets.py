@@ -4,15 +4,10 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.data.datasets import (
-    StereoScene,
-    find_data_root,
-    load_middeval3,
-    load_scene,
-    read_calib,
-    scene_dirs,
-)
+from sswjax.data.calibration import read_calib
 from sswjax.data.io import InputError, write_pfm
+from sswjax.data.layouts import StereoScene, find_data_root
+from sswjax.data.layouts.middeval3 import load_middeval3, load_scene, scene_dirs
 
 CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
 cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]

@@ -17,9 +17,9 @@ import pytest
 
 from sswjax import cli
 from sswjax.data import download
-from sswjax.data.datasets import load_middeval3
 from sswjax.data.download import DownloadError, ResumingDownloader, download_middeval3
 from sswjax.data.io import InputError, write_pfm
+from sswjax.data.layouts import detect_layout, load_scenes
 
 # ----------------------------------------------------------------------------- local server
 
@@ -256,7 +256,7 @@ def test_download_middeval3_end_to_end(server, tmp_path):
     root = get(keep_archives=True)
     assert root == dest / "MiddEval3" and len(server.requests) == 2
     assert (root / "testH/Scene3/im0.png").is_file()
-    loaded = load_middeval3(root, split="trainingH")
+    loaded = load_scenes(root, split="trainingH")
     assert [s.name for s in loaded] == ["Scene1", "Scene2"]
     for s in loaded:
         left, right, gt, mask = scenes[s.name]
@@ -353,8 +353,6 @@ def build_eth3d_archives(folder: Path, tmp: Path) -> None:
 
 
 def test_download_eth3d_end_to_end(server, tmp_path):
-    from sswjax.data.layouts import detect_layout, load_scenes
-
     build_eth3d_archives(server.root, tmp_path)
     root = download.download_eth3d(tmp_path / "data", base_url=server.url, progress=False)
     assert root == tmp_path / "data" / "ETH3D" and len(server.requests) == 2

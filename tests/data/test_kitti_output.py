@@ -5,8 +5,8 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.data.io import InputError
-from sswjax.data.layouts import read_scaled_disparity, write_scaled_disparity
+from sswjax.data.io import InputError, read_pfm
+from sswjax.data.scaled import read_scaled_disparity, write_scaled_disparity
 
 
 def test_kitti_png_round_trip(tmp_path):
@@ -49,8 +49,6 @@ def test_kitti_png_into_a_missing_folder(tmp_path):
 
 
 def test_cli_kitti_png(small_pair, tmp_path, run_cli):
-    from sswjax.data.io import read_pfm
-
     folder = small_pair.folder
     code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp",
                                small_pair.ndisp, "-o", tmp_path / "d.pfm",

@@ -8,15 +8,20 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.data.datasets import find_data_root
 from sswjax.data.io import InputError
 from sswjax.data.layouts import (
     LAYOUTS,
+    Layout,
     detect_layout,
+    find_data_root,
     load_scenes,
     ndisp_from_ground_truth,
-    read_scaled_disparity,
 )
+from sswjax.data.layouts.eth3d import Eth3dLayout
+from sswjax.data.layouts.kitti import KittiLayout
+from sswjax.data.layouts.middeval3 import MiddEval3Layout
+from sswjax.data.layouts.middlebury import MiddleburyLayout
+from sswjax.data.scaled import read_scaled_disparity
 
 SHAPE = (12, 40)
 SHARED = find_data_root().parent  # ../shared/data beside the project, as MiddEval3
@@ -228,3 +233,29 @@ def test_eth3d_two_view_layout(tmp_path, write_eth3d):
         load_scenes(root, scenes=["delivery_area_1l"])
     assert "ETH3D (two_view_training/<scene>/{im0.png,im1.png,calib.txt}" in \
         str(pytest.raises(InputError, detect_layout, tmp_path).value)
+
+
+def test_registry_classes_scoring_and_required_files():
+    """What ``sswjax evaluate`` reads of a layout: its name, scoring and required files."""
+    expected = {
+        "MiddEval3": (MiddEval3Layout, "middeval3", True,
+                      (("ground_truth", "disp0GT.pfm"), ("mask", "mask0nocc.png"))),
+        "KITTI2012": (KittiLayout, "kitti", True, (("ground_truth", "disp_noc"),)),
+        "KITTI2015": (KittiLayout, "kitti", True, (("ground_truth", "disp_noc_0"),)),
+        "Middlebury2001": (MiddleburyLayout, "mean", False, (("ground_truth", "disp2.pgm"),)),
+        "Middlebury2003": (MiddleburyLayout, "mean", False, (("ground_truth", "disp2.pgm"),)),
+        "Middlebury2005": (MiddleburyLayout, "mean", False, (("ground_truth", "disp1.png"),)),
+        "Middlebury2006": (MiddleburyLayout, "mean", False, (("ground_truth", "disp1.png"),)),
+        "ETH3D": (Eth3dLayout, "mean", True,
+                  (("ground_truth", "disp0GT.pfm"), ("mask", "mask0nocc.png"))),
+    }
+    assert list(LAYOUTS) == list(expected)
+    for name, (cls, scoring, has_masks, required) in expected.items():
+        layout = LAYOUTS[name]
+        assert type(layout) is cls and isinstance(layout, Layout) and layout.name == name
+        assert (layout.scoring, layout.has_masks, layout.required) == (scoring, has_masks, required)
+    assert LAYOUTS["KITTI2012"].files == "training/{image_0,image_1,disp_noc}"
+    assert LAYOUTS["Middlebury2005"].files == "<scene>/{view1.png,view5.png,disp1.png}"
+    assert LAYOUTS["MiddEval3"].files == "<scene>/{im0.png,im1.png,calib.txt}"
+    with pytest.raises(TypeError):
+        Layout()  # the base class is abstract
