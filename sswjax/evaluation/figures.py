@@ -1,6 +1,6 @@
 """Comparison figure of evaluated methods (needs matplotlib, extra ``[bench]``).
 
-Conventions: scenes are :class:`sswjax.data.datasets.StereoScene`; results map a method name to its
+Conventions: scenes are :class:`sswjax.data.layouts.StereoScene`; results map a method name to its
 per-scene :class:`sswjax.evaluation.SceneResult` in the same scene order.
 """
 
@@ -10,10 +10,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
-from sswjax.data.datasets import StereoScene
+from sswjax._files import atomic_output
+from sswjax.data.io import disparity_to_rgb
+from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.runner import SceneResult
-from sswjax.data.io import atomic_output, disparity_to_rgb
 
 SPARSE_FRACTION = 0.5
 """Ground truths known on fewer pixels than this fraction are *sparse*: :func:`comparison_figure`
@@ -199,8 +201,6 @@ def comparison_figure(
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", dpi=dpi)
         if colors is not None:
-            from PIL import Image  # installed with matplotlib
-
             with Image.open(tmp) as image:
                 palette = image.convert("RGB").quantize(colors)
             palette.save(tmp, format="PNG", optimize=True)

@@ -1,36 +1,123 @@
-"""Named stereo methods for evaluation: SSW, its ablations, the baseline aggregators and peers.
+"""The catalogue of named methods for evaluation: SSW's ablations, the aggregators of Table 1 as
+methods, and other projects' matchers (peers).
 
 Conventions: a method is a callable ``(left, right, ndisp) -> float32 (H, W)`` dense disparity
-taking images as read from disk (see :mod:`sswjax.evaluation.runner`). SSW variants are the pipeline
-with some parameters changed (:data:`SSW_VARIANTS`); the baselines replace only the aggregation
-step (Table 1 of the paper: BF, GF, iGF, MF); peers are other projects' matchers
-(:mod:`sswjax.evaluation.peers`). With shape buckets an SSW variant is a :class:`BucketedSSW`, which
-:func:`sswjax.evaluation.evaluate_scenes` runs grouped by bucket and sharded over all JAX devices.
+taking images as read from disk (see :mod:`sswjax.evaluation.runner`).
+
+* A **variant** is a set of changes applied on top of the user's parameters with
+  :meth:`sswjax.Params.replace` (:data:`VARIANTS`); every aggregator kind of
+  :mod:`sswjax.config.aggregation` is a variant too, named after it (the paper's Table 1:
+  BF, GF, iGF, MF, and a plain box), replacing only the aggregation.
+* A **peer** is another project's matcher run under our protocol (:data:`PEERS`, optional
+  dependencies, :mod:`sswjax.evaluation.peers`).
+
+With shape buckets an SSW variant is a :class:`BucketedSSW`, which
+:func:`sswjax.evaluation.runner.evaluate_scenes` runs grouped by bucket and sharded over all JAX
+devices.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator, Sequence
+import functools
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from sswjax.api import ShapeBuckets, match
-from sswjax.batching import iter_match_scenes
-from sswjax.params import Params, default_params
-from sswjax.registry import PEERS, method_names, variant_changes
+from sswjax.api.batch import iter_match_scenes
+from sswjax.api.match import match
+from sswjax.config import Params, default_params, kinds
+from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_disparity
+from sswjax.runtime.buckets import ShapeBuckets
+
+__all__ = ["PEERS", "VARIANTS", "BucketedSSW", "Peer", "Variant", "make_method",
+           "method_names", "method_summaries", "submission_name", "variant_changes"]
 
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
 
+class Variant(NamedTuple):
+    """An entry of :data:`VARIANTS`: changes for :meth:`sswjax.Params.replace` and a summary."""
+
+    changes: Mapping[str, Any]
+    summary: str
+
+
+VARIANTS: dict[str, Variant] = {
+    "ssw-noseg": Variant({"segments": None}, "SSW without the segment term"),
+    "ssw-norefine": Variant({"refinement": None},
+                            "SSW without the side-window median refinement"),
+    "ssw-nolr": Variant({"checks": None, "fill": None}, "SSW without the left-right check and fill"),
+    "ssw-guide": Variant({"aggregation.window_selection": "guide"},
+                         "SSW, windows chosen on the left image"),
+    "ssw-tad": Variant({"cost.tad_weight": 1.0, "cost.gradient_weight": 0.0,
+                        "cost.census_weight": 0.0}, "SSW with the TAD cost alone"),
+    "ssw-gm": Variant({"cost.tad_weight": 0.0, "cost.gradient_weight": 1.0,
+                       "cost.census_weight": 0.0}, "SSW with the gradient cost alone"),
+    "ssw-census": Variant({"cost.tad_weight": 0.0, "cost.gradient_weight": 0.0,
+                           "cost.census_weight": 1.0}, "SSW with the census cost alone"),
+}
+"""Ablations of SSW: method name -> :class:`Variant` (applied on top of the user's parameters)."""
+
+
+class Peer(NamedTuple):
+    """An entry of :data:`PEERS`: another project's matcher and a one-line summary."""
+
+    fn: Callable[..., Any]
+    summary: str
+
+
+PEERS: dict[str, Peer] = {
+    "bm": Peer(bm_disparity, "OpenCV StereoBM, block 9 on the luma, background fill (extra [bench])"),
+    "sgbm": Peer(sgbm_disparity, "OpenCV StereoSGBM 3-way, block 3, background fill (extra [bench])"),
+    "sgbm-hh": Peer(functools.partial(sgbm_disparity, mode="hh"),
+                    "OpenCV StereoSGBM HH (8 paths, full-size buffers), block 3, background fill "
+                    "(extra [bench])"),
+    "pandora": Peer(pandora_disparity,
+                    "CNES Pandora census 5x5 + SGM, background fill (extra [pandora])"),
+}
+"""Method name -> :class:`Peer`."""
+
+
+def variant_changes(name: str) -> Mapping[str, Any]:
+    """Parameter changes of the SSW method ``name`` (an aggregator kind or a variant).
+
+    An aggregator is the old switch ``{"aggregation": kind}``, which keeps the radius where the
+    new kind has one of its own meaning and drops superpixels nothing uses then.
+
+    Raises ``KeyError`` for a name that is neither.
+
+    Examples
+    --------
+    >>> variant_changes("gf"), variant_changes("ssw")
+    ({'aggregation': 'gf'}, {})
+    """
+    if name in kinds("aggregation"):
+        return {} if name == "ssw" else {"aggregation": name}
+    return VARIANTS[name].changes
+
+
+def method_names() -> tuple[str, ...]:
+    """Every method ``sswjax evaluate --methods`` accepts: aggregators, variants, peers."""
+    return (*kinds("aggregation"), *VARIANTS, *PEERS)
+
+
+def method_summaries() -> dict[str, str]:
+    """Method name -> one-line summary (for the command line's help)."""
+    aggregators = {name: cls.summary() for name, cls in kinds("aggregation").items()}
+    return {**aggregators, **{name: entry.summary for name, entry in VARIANTS.items()},
+            **{name: entry.summary for name, entry in PEERS.items()}}
+
+
 @dataclasses.dataclass(frozen=True)
 class BucketedSSW:
-    """An SSW variant on bucketed shapes, a :class:`sswjax.evaluation.BatchedMethod`.
+    """An SSW variant on bucketed shapes, a :class:`sswjax.evaluation.runner.BatchedMethod`.
 
     Called on one pair it is ``sswjax.match(left, right, ndisp, params=params, buckets=buckets)``;
-    :meth:`match_many` gives the same maps from
-    :func:`sswjax.batching.iter_match_scenes`: pairs grouped by bucket, one pair per device
-    per call, sharded over ``devices`` (default: all ``jax.devices()``).
+    :meth:`match_many` gives the same maps from :func:`sswjax.api.batch.iter_match_scenes`:
+    pairs grouped by bucket, one pair per device per call, sharded over ``devices`` (default:
+    all ``jax.devices()``).
     """
 
     params: Params
@@ -59,10 +146,10 @@ def make_method(
     Parameters
     ----------
     name : str
-        One of :func:`sswjax.registry.method_names`.
+        One of :func:`method_names`.
     params : Params, optional
         Base parameters of the SSW variants (default: the ``accurate`` preset,
-        :func:`sswjax.params.default_params`); ignored by peers.
+        :func:`sswjax.config.default_params`); ignored by peers.
     buckets : ShapeBuckets, optional
         Shape bucketing of the SSW variants (see :func:`sswjax.match`); with it they are
         :class:`BucketedSSW` (batched evaluation over ``devices``).
@@ -83,11 +170,7 @@ def make_method(
     variant = (default_params() if params is None else params).replace(**variant_changes(name))
     if buckets is not None:
         return BucketedSSW(variant, buckets, None if devices is None else tuple(devices))
-
-    def run(left, right, ndisp):
-        return match(left, right, ndisp, params=variant)
-
-    return run
+    return functools.partial(match, params=variant)
 
 
 def submission_name(name: str) -> str:

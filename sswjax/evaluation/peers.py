@@ -2,8 +2,8 @@
 
 Conventions: a peer is a callable ``(left, right, ndisp) -> float32 (H, W)`` taking images as
 read from disk (uint8/uint16, gray or colour) and returning a dense disparity map in pixels.
-Invalid pixels of a peer are filled like ours (:func:`sswjax.stages.refinement.fill_background`, the
-smaller of the nearest valid disparities on the row), so every method is scored dense.
+Invalid pixels of a peer are filled like ours (:func:`sswjax.stages.refinement.fill_background`,
+the smaller of the nearest valid disparities on the row), so every method is scored dense.
 
 - ``bm``: OpenCV's ``StereoBM``, block 9 on the luma, uniqueness 10, the same speckle filter
   and left-right check as ``sgbm``.
@@ -18,6 +18,8 @@ smaller of the nearest valid disparities on the row), so every method is scored 
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -204,7 +206,6 @@ def pandora_disparity(left: np.ndarray, right: np.ndarray, ndisp: int) -> np.nda
         from pandora_plugin_libsgm import lib_sgm  # noqa: F401  (the "sgm" optimization plugin)
     except ImportError as error:  # pragma: no cover - depends on the environment
         raise ValueError("method pandora needs CNES Pandora: pip install 'sswjax[pandora]'") from error
-    import copy
 
     gray_left, gray_right = _gray_float32(left), _gray_float32(right)
     if gray_left.shape != gray_right.shape:

@@ -19,8 +19,10 @@ from pathlib import Path
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
+from tqdm import tqdm
 
-from sswjax.data.datasets import StereoScene
+from sswjax._files import atomic_output
+from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.metrics import (
     MIDDEVAL3_TRAINING_WEIGHTS,
     evaluate_disparity,
@@ -198,8 +200,6 @@ def evaluate_scenes(
 
     See :func:`iter_evaluate_scenes` for how plain and batched methods are run and scored.
     """
-    from tqdm import tqdm
-
     scenes = list(scenes)
     results: list[SceneResult | None] = [None] * len(scenes)
     with tqdm(total=len(scenes), desc="scenes", unit="scene", disable=not progress) as bar:
@@ -329,8 +329,6 @@ def summary_markdown(
 
 def write_metrics_csv(path: str | Path, results: Mapping[str, Sequence[SceneResult]]) -> None:
     """Per-scene metrics, one row per (method, scene, region), written atomically."""
-    from sswjax.data.io import atomic_output
-
     rows = [
         {"method": m, "scene": r.scene, "region": region, "seconds": f"{r.seconds:.3f}",
          **{k: f"{v:.4f}" for k, v in r.metrics[region].items()}}

@@ -8,12 +8,12 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.batching import iter_match_scenes
+from sswjax.api.batch import iter_match_scenes
 from sswjax.cli import main
 from sswjax.evaluation.runner import PAPER_TABLE1, SceneResult, summary, table1_markdown
 from sswjax.data.io import read_pfm, write_pfm
 from sswjax.evaluation.methods import make_method, submission_name
-from sswjax.registry import method_names
+from sswjax.evaluation.methods import method_names
 from sswjax.evaluation.metrics import weighted_average
 
 

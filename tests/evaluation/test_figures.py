@@ -6,7 +6,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.data.datasets import StereoScene
+from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.figures import comparison_figure, error_map
 from sswjax.evaluation.runner import SceneResult
 

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import csv
-import importlib
 
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
-import sswjax.evaluation.methods
+import sswjax.cli.evaluate
 from sswjax.cli import main
-from sswjax.data.datasets import find_data_root
+from sswjax.data.layouts import find_data_root
 from sswjax.data.io import read_pfm
 from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.evaluation.runner import (
@@ -113,13 +112,7 @@ def oracle(monkeypatch):
 
         return run
 
-    monkeypatch.setattr(sswjax.evaluation.methods, "make_method", make_method)
-    try:  # where methods may also be named
-        registry = importlib.import_module("sswjax.registry")
-    except ImportError:
-        registry = None
-    if registry is not None:
-        monkeypatch.setattr(registry, "make_method", make_method, raising=False)
+    monkeypatch.setattr(sswjax.cli.evaluate, "make_method", make_method)  # where evaluate calls it
     return calls
 
 

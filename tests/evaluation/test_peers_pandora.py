@@ -22,9 +22,8 @@ def test_pandora_peer_is_dense_and_recovers_a_shift():
 
 
 def test_pandora_is_a_registered_peer():
-    from sswjax.evaluation.methods import make_method
+    from sswjax.evaluation.methods import make_method, method_names
     from sswjax.evaluation.peers import pandora_disparity
-    from sswjax.registry import method_names
 
     assert "pandora" in method_names()
     assert make_method("pandora") is pandora_disparity
