@@ -1,6 +1,8 @@
-"""Tests of the differentiable search objective (sswjax.tuning): tiny synthetic crops only."""
+"""Tests of the differentiable parameter search (sswjax.search): tiny synthetic crops only."""
 
 import json
+import sys
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -8,12 +10,22 @@ import numpy as np
 import optax
 import pytest
 
-from sswjax import tuning
-from sswjax.params import DynamicParams, Params
+from sswjax import search as tuning
+from sswjax.config import Params, SemiGlobal, preset
+from sswjax.config.cost import MatchingCost
+from sswjax.config.fields import option_fields
+from sswjax.data.layouts import StereoScene
+from sswjax.runtime.devices import device_mesh
 
 NDISP = 8
-STATIC = Params().static._replace(n_segments=8, slic_iterations=2, census_height=5, census_width=5,
-                                  aggregation_iterations=1, aggregation_radius=2)
+BASE = Params().replace(**{"segments.n_segments": 8, "segments.iterations": 2,
+                           "cost.census_height": 5, "cost.census_width": 5,
+                           "aggregation.iterations": 1, "aggregation.radius": 2})
+
+
+def _scene(name, image, ndisp, gt, mask=None):
+    return StereoScene(name=name, left=image, right=image, ndisp=ndisp, ground_truth=gt,
+                       mask=mask, path=None)
 
 
 def _crops(shifts=(3, 5)):
@@ -27,7 +39,7 @@ def _crops(shifts=(3, 5)):
         left = base[:, :48]
         left = np.clip(left + 0.01 * rng.standard_normal(left.shape), 0, 1).astype(np.float32)
         gt = np.full((24, 48), float(shift), np.float32)
-        valid = np.asarray(tuning.valid_mask(gt, np.ones((24, 48), bool), ndisp=NDISP))
+        valid = tuning.valid_mask(gt, None, ndisp=NDISP)
         lefts.append(left), rights.append(right), gts.append(gt), valids.append(valid)
     return (np.stack(lefts), np.stack(rights), np.stack(gts), np.stack(valids),
             np.full(len(shifts), NDISP, np.int32))
@@ -43,63 +55,90 @@ def batch():
 def adam():
     """Adam with a small step and its jitted update step (compiled once for the module)."""
     optimizer = optax.adam(0.01)
-    step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams())
+    step = tuning.make_update_step(optimizer, base=BASE, ndisp=NDISP)
     return optimizer, step
 
 
 def test_round_trip():
-    dynamic = DynamicParams(tad_weight=0.1, gradient_weight=0.3, census_weight=0.6,
-                            tad_truncation=0.05, gradient_truncation=0.2, segment_weight=0.7)
-    back, temperature = tuning.from_unconstrained(tuning.to_unconstrained(dynamic, temperature=0.03),
-                                                  base=dynamic)
-    for name in tuning.SEARCHED:
-        assert float(getattr(back, name)) == pytest.approx(getattr(dynamic, name), rel=1e-4)
+    params = Params().replace(**{"cost.tad_weight": 0.1, "cost.gradient_weight": 0.3,
+                                 "cost.census_weight": 0.6, "cost.tad_truncation": 0.05,
+                                 "cost.gradient_truncation": 0.2,
+                                 "aggregation.segment_weight": 0.7,
+                                 "segments.compactness": 12.0, "checks.tolerance": 0.5})
+    back, temperature = tuning.from_unconstrained(
+        tuning.to_unconstrained(params, temperature=0.03), base=params)
+    for path in tuning.SEARCHED:
+        assert float(tuning.value_of(back, path)) == pytest.approx(tuning.value_of(params, path),
+                                                                   rel=1e-4)
     assert float(temperature) == pytest.approx(0.03, rel=1e-4)
-    for name in tuning.FIXED:
-        assert getattr(back, name) == getattr(dynamic, name)
+    # no useful gradient on the soft path: not searchable, held at the base values
+    for path in ("segments.compactness", "checks.tolerance"):
+        assert path not in tuning.searchable(params)
+        assert tuning.value_of(back, path) == tuning.value_of(params, path)
+    assert tuning.searchable(Params()) == tuning.SEARCHED
 
 
 def test_weights_normalised_and_ranges():
-    raw = tuning.to_unconstrained(DynamicParams(tad_weight=1.0, gradient_weight=1.0, census_weight=2.0))
+    start = Params().replace(**{"cost.tad_weight": 1.0, "cost.gradient_weight": 1.0,
+                                "cost.census_weight": 2.0})
+    raw = tuning.to_unconstrained(start)
     raw = {k: v + 50.0 for k, v in raw.items()}  # extreme values stay in range
-    dynamic, temperature = tuning.from_unconstrained(raw)
-    assert float(dynamic.tad_weight + dynamic.gradient_weight + dynamic.census_weight) == pytest.approx(1.0)
-    for name, (low, high) in tuning.TRUNCATION_RANGES.items():
-        assert low - 1e-6 <= float(getattr(dynamic, name)) <= high + 1e-6
+    params, temperature = tuning.from_unconstrained(raw, base=start)
+    cost = params.cost
+    assert float(cost.tad_weight + cost.gradient_weight + cost.census_weight) == pytest.approx(1.0)
+    ranges = {name: spec.search for name, spec in option_fields(MatchingCost)
+              if name.endswith("_truncation")}
+    assert set(ranges) == {"tad_truncation", "gradient_truncation"}
+    for name, (low, high) in ranges.items():
+        assert low - 1e-6 <= float(getattr(cost, name)) <= high + 1e-6
     assert float(temperature) > 0
     params = tuning.raw_to_params(raw, Params())
-    assert isinstance(params.dynamic.tad_weight, float)
+    assert isinstance(params.cost.tad_weight, float)
 
 
 def test_valid_mask_excludes_matches_outside():
-    gt = np.array([[0.0, 2.0, 2.0, np.inf, 9.0]], np.float32)
-    nonocc = np.array([[True, True, True, True, True]])
-    assert np.asarray(tuning.valid_mask(gt, nonocc, ndisp=8)).tolist() == [[True, False, True, False, False]]
+    """The one loss mask: known, non-occluded, 0 <= gt <= ndisp - 1, match inside the crop."""
+    gt = np.array([[0.0, 2.0, 2.0, np.inf, 9.0, -1.0, 1.0]], np.float32)
+    assert tuning.valid_mask(gt, None, ndisp=8).tolist() == [
+        [True, False, True, False, False, False, True]]
+    mask = np.array([[255, 255, 128, 255, 255, 255, 0]], np.uint8)
+    assert tuning.valid_mask(gt, mask, ndisp=8).tolist() == [
+        [True, False, False, False, False, False, False]]
+    # random_crops uses it: the valid pixels of each crop are the mask of its ground truth
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(-2, 10, (20, 30)).astype(np.float32)
+    truth[rng.random((20, 30)) < 0.2] = np.nan
+    occlusion = np.where(rng.random((20, 30)) < 0.3, 128, 255).astype(np.uint8)
+    scene = _scene("m", np.zeros((20, 30, 1), np.float32), 8, truth, occlusion)
+    _, _, gts, valids, _ = tuning.random_crops([scene], rng, batch=1, height=20, width=30)
+    assert valids[0].tolist() == tuning.valid_mask(truth, occlusion, ndisp=8).tolist()
+    assert not valids[0][truth < 0].any() and valids[0].any()
+    assert np.all(np.isfinite(gts))
 
 
 def test_loss_and_gradients_finite_nonzero(batch, adam):
     """Through Adam's first step, -lr * g / (|g| + eps): finite iff g is, nonzero iff g is."""
     optimizer, step = adam
-    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    raw = tuning.to_unconstrained(BASE, temperature=0.05)
     new_raw, _, value = step(raw, optimizer.init(raw), batch)
     assert np.isfinite(float(value)) and float(value) > 0
-    for key in tuning.RAW_KEYS:
+    for key in tuning.raw_keys(tuning.SEARCHED):
         moved = np.asarray(new_raw[key]) - np.asarray(raw[key])
         assert np.all(np.isfinite(moved)), key
         assert np.all(np.abs(moved) > 1e-3), key  # |g| >> eps
 
 
 def test_padded_ndisp_is_masked(batch):
-    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    raw = tuning.to_unconstrained(BASE, temperature=0.05)
     left, right = batch[0][0], batch[1][0]
-    d = jax.jit(lambda r: tuning.soft_disparity(r, left, right, static=STATIC, ndisp=NDISP,
-                                                base=DynamicParams(), scene_ndisp=4))(raw)
+    d = jax.jit(lambda r: tuning.soft_disparity(r, left, right, base=BASE, ndisp=NDISP,
+                                                scene_ndisp=4))(raw)
     assert float(jnp.max(d)) <= 3.0 + 1e-4
 
 
 def test_update_step_lowers_loss(batch, adam):
     optimizer, step = adam
-    raw = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    raw = tuning.to_unconstrained(BASE, temperature=0.05)
     state = optimizer.init(raw)
     new_raw, state, before = step(raw, state, batch)
     _, _, after = step(new_raw, state, batch)  # the loss returned is at new_raw
@@ -109,13 +148,13 @@ def test_update_step_lowers_loss(batch, adam):
 def test_frozen_keys_by_construction(batch):
     """make_optimizer's frozen keys get zero updates and no Adam moments; the trained keys take
     bit for bit the steps of Adam fed a zeroed gradient on the frozen keys (the hand-made way)."""
-    frozen = ("weight_logits", "temperature")
-    raw0 = tuning.to_unconstrained(DynamicParams(), temperature=0.05)
+    frozen = ("cost.weight_logits", "temperature")
+    raw0 = tuning.to_unconstrained(BASE, temperature=0.05)
     mask = {k: k in frozen for k in raw0}
     zeroed = optax.chain(optax.masked(optax.set_to_zero(), mask), optax.adam(0.05))
     paths = []
     for optimizer in (tuning.make_optimizer(0.05, frozen=frozen), zeroed):
-        step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams())
+        step = tuning.make_update_step(optimizer, base=BASE, ndisp=NDISP)
         raw, state, path = raw0, optimizer.init(raw0), []
         for _ in range(3):
             raw, state, value = step(raw, state, batch)
@@ -133,12 +172,12 @@ def test_frozen_keys_by_construction(batch):
     mu = adam_state.inner_state[0].mu
     assert {k for k, v in mu.items() if not isinstance(v, optax.MaskedNode)} == set(raw0) - set(frozen)
     with pytest.raises(ValueError, match="unknown raw keys"):
-        tuning.make_optimizer(0.05, frozen=("tad_weight",))
+        tuning.make_optimizer(0.05, frozen=("cost.tad_weight",))
 
 
 def test_checkpoint_round_trip(tmp_path):
-    raw = tuning.to_unconstrained(DynamicParams())
-    optimizer = tuning.make_optimizer(0.05, frozen=("weight_logits",))
+    raw = tuning.to_unconstrained(Params())
+    optimizer = tuning.make_optimizer(0.05, frozen=("cost.weight_logits",))
     state = optimizer.init(raw)
     grads = jax.tree_util.tree_map(jnp.ones_like, raw)
     updates, state = optimizer.update(grads, state, raw)
@@ -164,13 +203,11 @@ def test_checkpoint_round_trip(tmp_path):
 
 
 def test_random_crops_shapes():
-    from sswjax.data.datasets import StereoScene
-
     rng = np.random.default_rng(0)
     image = rng.random((30, 60, 3)).astype(np.float32)
     gt = np.full((30, 60), 4.0, np.float32)
     gt[0, 0] = np.inf
-    scene = StereoScene("x", image, image, 16, gt, np.full((30, 60), 255, np.uint8), None)
+    scene = _scene("x", image, 16, gt, np.full((30, 60), 255, np.uint8))
     lefts, rights, gts, valids, nds = tuning.random_crops([scene], rng, batch=3, height=20, width=40)
     assert lefts.shape == (3, 20, 40, 3) and gts.shape == (3, 20, 40) and valids.dtype == bool
     assert np.all(np.isfinite(gts)) and nds.tolist() == [16, 16]  + [16]
@@ -180,13 +217,10 @@ def test_random_crops_shapes():
 def _two_steps(devices):
     """Loss and raw parameters after each of two Adam steps on three crops (not a multiple of
     two devices), sharded over ``devices``; and how :func:`tuning.shard_crops` splits them."""
-    from sswjax.batching import device_mesh
-
     crops = _crops((3, 5, 2))
     optimizer = optax.adam(0.05)
-    step = tuning.make_update_step(optimizer, static=STATIC, ndisp=NDISP, base=DynamicParams(),
-                                   devices=devices)
-    raw = tuning.to_unconstrained(DynamicParams(), temperature=1.0)  # a loss far from 0
+    step = tuning.make_update_step(optimizer, base=BASE, ndisp=NDISP, devices=devices)
+    raw = tuning.to_unconstrained(BASE, temperature=1.0)  # a loss far from 0
     state, out = optimizer.init(raw), []
     for _ in range(2):
         raw, state, value = step(raw, state, crops)
@@ -222,7 +256,7 @@ def test_sharded_step_same_on_one_and_two_devices(run_on_devices):
 
 # --- the search through the semi-global optimiser, and the data-set folds ------------------
 
-SGM_STATIC = STATIC._replace(n_segments=0, optimizer="sgm", sgm_paths=4)
+SGM_BASE = BASE.replace(segments=None, optimizer=SemiGlobal(paths=4, p1=0.05, p2=0.8, sigma=0.05))
 
 
 def test_sgm_objective_gradients_finite_nonzero():
@@ -231,42 +265,50 @@ def test_sgm_objective_gradients_finite_nonzero():
     paths of inference, if the default, would round them to zero: the search runs the float32
     ones)."""
     lefts, rights, gts, valids, nds = _crops((3,))
-    base = DynamicParams(sgm_p1=0.05, sgm_p2=0.8, sgm_sigma=0.05)
-    raw = tuning.to_unconstrained(base, temperature=0.08, searched=tuning.SGM_SEARCHED)
-    assert set(raw) == {"tad_truncation", "gradient_truncation", "sgm_p1", "sgm_p2", "sgm_sigma",
-                        "temperature"}
+    raw = tuning.to_unconstrained(SGM_BASE, temperature=0.08, searched=tuning.SGM_SEARCHED)
+    assert set(raw) == {"cost.tad_truncation", "cost.gradient_truncation", "optimizer.p1",
+                        "optimizer.p2", "optimizer.sigma", "temperature"}
     value, grads = jax.jit(jax.value_and_grad(
-        lambda r: tuning.batch_loss(r, lefts, rights, gts, valids, nds, static=SGM_STATIC,
-                                    ndisp=NDISP, base=base)))(raw)
+        lambda r: tuning.batch_loss(r, lefts, rights, gts, valids, nds, base=SGM_BASE,
+                                    ndisp=NDISP)))(raw)
     assert np.isfinite(float(value)) and float(value) > 0
     for key in raw:
         g = float(grads[key])
         assert np.isfinite(g) and abs(g) > 1e-7, (key, g)
-    # a non-differentiable inference switch is replaced in the search
-    for key, value in tuning.DIFFERENTIABLE_STATIC.items():
-        if key in SGM_STATIC._fields:
-            assert getattr(tuning.differentiable_static(SGM_STATIC), key) == value
+    # a non-differentiable inference switch is replaced in the search, as its option declares
+    assert SGM_BASE.optimizer.dtype == "int16"
+    declared = {name: spec.differentiable for name, spec in option_fields(SemiGlobal)
+                if spec.differentiable is not None}
+    assert declared == {"dtype": "float32"}
+    for name, value in declared.items():
+        assert getattr(tuning.differentiable(SGM_BASE).optimizer, name) == value
 
 
 def test_search_spaces_round_trip():
-    dynamic = DynamicParams(sgm_p1=0.03, sgm_p2=1.1, sgm_sigma=0.02, tad_truncation=0.05)
-    raw = tuning.to_unconstrained(dynamic, temperature=0.1, searched=tuning.SGM_SEARCHED)
+    start = SGM_BASE.replace(**{"optimizer.p1": 0.03, "optimizer.p2": 1.1,
+                                "optimizer.sigma": 0.02, "cost.tad_truncation": 0.05})
+    raw = tuning.to_unconstrained(start, temperature=0.1, searched=tuning.SGM_SEARCHED)
     assert tuple(raw) == tuning.raw_keys(tuning.SGM_SEARCHED)
     assert tuning.searched_fields(raw) == tuning.SGM_SEARCHED
-    back, temperature = tuning.from_unconstrained(raw, base=DynamicParams())
-    for name in tuning.SGM_SEARCHED:
-        assert float(getattr(back, name)) == pytest.approx(float(getattr(dynamic, name)), rel=1e-4)
-    assert back.tad_weight == DynamicParams().tad_weight  # not searched: from base
+    assert set(tuning.SGM_SEARCHED) <= set(tuning.searchable(preset("accurate")))
+    back, temperature = tuning.from_unconstrained(raw, base=SGM_BASE)
+    for path in tuning.SGM_SEARCHED:
+        assert float(tuning.value_of(back, path)) == pytest.approx(
+            float(tuning.value_of(start, path)), rel=1e-4)
+    assert back.cost.tad_weight == SGM_BASE.cost.tad_weight  # not searched: from base
     assert float(temperature) == pytest.approx(0.1, rel=1e-4)
-    params = tuning.raw_to_params({k: v - 30.0 for k, v in raw.items()}, Params())
-    assert params.dynamic.sgm_sigma >= tuning.SOFTPLUS_FLOORS["sgm_sigma"]
-    assert params.dynamic.sgm_p1 >= 0 and params.dynamic.census_weight == Params().dynamic.census_weight
+    params = tuning.raw_to_params({k: v - 30.0 for k, v in raw.items()}, SGM_BASE)
+    floor = dict(option_fields(SemiGlobal))["sigma"].search.floor
+    assert floor > 0 and params.optimizer.sigma >= floor
+    assert params.optimizer.p1 >= 0 and params.cost.census_weight == SGM_BASE.cost.census_weight
     with pytest.raises(ValueError, match="all together"):
-        tuning.raw_keys(("tad_weight", "sgm_p1"))
+        tuning.raw_keys(("cost.tad_weight", "optimizer.p1"))
     with pytest.raises(ValueError, match="no reparametrisation"):
-        tuning.raw_keys(("lr_tolerance",))
+        tuning.raw_keys(("checks.tolerance",))
+    with pytest.raises(ValueError, match="stage optimizer is None"):
+        tuning.to_unconstrained(Params(), searched=tuning.SGM_SEARCHED)
     # the freeze keys of the SGM space are accepted
-    tuning.make_optimizer(0.05, frozen=("sgm_sigma",))
+    tuning.make_optimizer(0.05, frozen=("optimizer.sigma",))
 
 
 def test_dataset_folds_leave_one_out():
@@ -283,13 +325,11 @@ def test_dataset_folds_leave_one_out():
 
 def test_random_crops_sparse_ground_truth():
     """KITTI-like: ground truth on the bottom rows only, no mask; gray repeated to 3 channels."""
-    from sswjax.data.datasets import StereoScene
-
     rng = np.random.default_rng(1)
     image = (rng.random((40, 60)) * 255).astype(np.uint8)
     gt = np.full((40, 60), np.nan, np.float32)
     gt[32:] = 3.0
-    scene = tuning.prepare_scene(StereoScene("k", image, image, 8, gt, None, None), channels=3)
+    scene = tuning.prepare_scene(_scene("k", image, 8, gt), channels=3)
     assert scene.left.shape == (40, 60, 3) and np.array_equal(scene.left[..., 0], scene.left[..., 2])
     lefts, _, _, valids, _ = tuning.random_crops([scene], rng, batch=6, height=12, width=20,
                                                  min_valid=0.2)
@@ -300,26 +340,39 @@ def test_random_crops_sparse_ground_truth():
     assert once.mean(axis=(1, 2)).min() < 0.2  # without min_valid some crops miss it
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--pipeline", "accurate"], "needs --folds datasets"),
-    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "segment_weight"],
-     "not searched with --pipeline accurate"),
-    (["--folds", "one"], "expected a number or 'datasets'"),
-    (["--folds", "datasets", "--min-valid", "1.5"], "--min-valid must be in"),
-])
-def test_search_script_refuses_before_writing(tmp_path, capsys, argv, message):
-    """tuning/search.py: option errors exit 2 with one message and leave --out unwritten."""
-    import sys
-    from pathlib import Path
-
+@pytest.fixture(scope="module")
+def search_script():
+    """tuning/search.py as a module (tuning/ on sys.path while it imports tuning/plot.py)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tuning"))
     try:
         import search
     finally:
         sys.path.pop(0)
+    return search
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--pipeline", "accurate"], "needs --folds datasets"),
+    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "segment_weight"],
+     "--freeze aggregation.segment_weight: not searched with --pipeline accurate"),
+    # the old raw key names are read as the new ones
+    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "sgm_p2", "tad_truncation",
+      "--min-valid", "1.5"], "--min-valid must be in"),
+    (["--freeze", "tad_weight"], "invalid choice: 'tad_weight'"),
+    (["--folds", "one"], "expected a number or 'datasets'"),
+    (["--folds", "datasets", "--min-valid", "1.5"], "--min-valid must be in"),
+])
+def test_search_script_refuses_before_writing(tmp_path, capsys, search_script, argv, message):
+    """tuning/search.py: option errors exit 2 with one message and leave --out unwritten."""
     out = tmp_path / "run"
     with pytest.raises(SystemExit) as exit_info:
-        search.main(["--out", str(out), *argv])
+        search_script.main(["--out", str(out), *argv])
     assert exit_info.value.code == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_search_script_reads_old_freeze_names(search_script):
+    assert [search_script.freeze_key(k) for k in ("weight_logits", "sgm_sigma", "temperature",
+                                                  "optimizer.p1")] == [
+        "cost.weight_logits", "optimizer.sigma", "temperature", "optimizer.p1"]

@@ -6,28 +6,28 @@ One command runs everything (resumable; re-running skips finished parts)::
 
 Plan: the 15 trainingQ scenes are shuffled with ``--seed`` and split into ``--folds`` folds.
 For each fold the continuous parameters are searched on the other scenes (random fixed-size
-crops, soft-argmin, smooth L1; :mod:`sswjax.tuning`), then the full WTA pipeline is run on the
+crops, soft-argmin, smooth L1; :mod:`sswjax.search`), then the full WTA pipeline is run on the
 held-out scenes with the searched and with the hand-set parameters. A final search on all 15
 scenes gives ``tuning/params/tuned.json``. Files in ``--out``: ``fold<k>/`` and ``final/``
 (``checkpoint.pkl``, ``log.json``, ``params.json``), ``eval_*.json`` (per-scene metrics),
 ``results.json`` (CV table) and ``curves.png``.
 
 ``--folds datasets --pipeline accurate`` (leave one data set out): the ``accurate`` preset's
-truncations and SGM penalties (:data:`sswjax.tuning.SGM_SEARCHED`) are searched through its
+truncations and SGM penalties (:data:`sswjax.search.SGM_SEARCHED`) are searched through its
 semi-global optimiser on crops of all but one of ``--datasets`` (each step draws a set
 uniformly, then a bucket and crops; gray sets repeated to 3 channels so they share compiled
 steps; ``--min-valid`` redraws crops short of ground truth, for KITTI), then ``sswjax.match``
 runs on the whole held-out set with the searched and with the preset's parameters, scored as
 ``sswjax evaluate`` scores that set. Files: ``fold-<set>/`` (``log.json``, ``params.json``,
 ``checkpoint.pkl``), ``eval_<set>_{searched,accurate}.json`` (per scene), ``results.json`` (the
-held-out figures, searched values, times), ``results.md`` (them as tables) and ``curves.png``. Scenes with ndisp > 192 are scored
-but not searched on.
+held-out figures, searched values, times), ``results.md`` (them as tables) and ``curves.png``.
+Scenes with ndisp > 192 are scored but not searched on.
 
 Crops use the scene's full disparity range. To compile once per shape, scenes are put in two
 buckets: ndisp <= 96 (padded ndisp 96, crops ``--crop`` x 128) and ndisp <= 192 (padded 192,
 crops ``--crop`` x 224); the padded disparities are masked out before the soft-argmin. Each step
 draws a bucket with probability proportional to its number of training scenes. Each step's
-crops are split over all JAX devices (:func:`sswjax.tuning.make_update_step`; on one device the
+crops are split over all JAX devices (:func:`sswjax.search.make_update_step`; on one device the
 step is the unsharded one, bit for bit); ``--batch`` a multiple of the device count wastes no
 device (another size is padded with zero-weight crops).
 """
@@ -35,7 +35,6 @@ device (another size is padded with zero-weight crops).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import shlex
 import sys
@@ -45,20 +44,31 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from plot import plot_run, results_markdown, summarise, weighted  # tuning/plot.py
+
 import sswjax
-import sswjax.data.datasets
-from sswjax import tuning
-from sswjax.evaluation.metrics import weighted_average
-from sswjax.data.layouts import detect_layout, load_scenes
+from sswjax import search as tuning
+from sswjax._files import atomic_output
+from sswjax.config import load_params, save_params
+from sswjax.data.layouts import detect_layout, find_data_root, load_scenes
+from sswjax.data.layouts.middeval3 import load_middeval3
 from sswjax.evaluation.runner import MIDDEVAL3_SCORING, SCORINGS, evaluate_scenes
-from sswjax.params import load_params, save_params
-from sswjax.pipeline import ssw_disparity
+from sswjax.graph import ssw_disparity
 
 ROOT = Path(__file__).resolve().parent
 DATASETS = [ROOT.parent.parent / "shared" / "data" / name
              for name in ("MiddEval3", "KITTI2012", "Middlebury2001")]
 BUCKETS = ((96, 128), (192, 224))  # (padded ndisp, crop width)
 DATE = "2026-11-22"
+OLD_FREEZE_KEYS = {"weight_logits": "cost.weight_logits", "segment_weight": "aggregation.segment_weight",
+                   **{k: f"cost.{k}" for k in ("tad_truncation", "gradient_truncation")},
+                   **{f"sgm_{k}": f"optimizer.{k}" for k in ("p1", "p2", "sigma")}}
+"""The raw keys' names before the configuration was nested (``--freeze``) -> the raw keys."""
+
+
+def freeze_key(text: str) -> str:
+    """``--freeze``: a raw key, or its old name (:data:`OLD_FREEZE_KEYS`)."""
+    return OLD_FREEZE_KEYS.get(text, text)
 
 
 def folds_option(text: str):
@@ -82,21 +92,26 @@ def bucket_of(scene) -> int:
 
 
 def write_json(path, data):
-    from sswjax.data.io import atomic_output
-
     with atomic_output(path) as tmp, open(tmp, "w") as handle:
         json.dump(data, handle, indent=1)
         handle.write("\n")
 
 
-def crop_wta_bad2(params, scenes, crops_by_bucket, static_by_bucket):
+def with_segments(params, n_segments: int):
+    """``params`` with ``n_segments`` superpixels (unchanged without superpixels)."""
+    if params.segments is None:
+        return params
+    return params.replace(**{"segments.n_segments": n_segments})
+
+
+def crop_wta_bad2(params, crops_by_bucket, segments_by_bucket):
     """Weighted-by-pixels bad 2.0 (%) of the full WTA pipeline on fixed validation crops."""
     bad = total = 0
     for b, crops in crops_by_bucket.items():
         if crops is None:
             continue
         lefts, rights, gts, valids, _ = crops
-        p = params.replace(n_segments=static_by_bucket[b].n_segments)
+        p = with_segments(params, segments_by_bucket[b])
         nd = BUCKETS[b][0]
         for i in range(len(lefts)):
             d = np.asarray(ssw_disparity(lefts[i], rights[i], p, ndisp=nd))
@@ -107,7 +122,7 @@ def crop_wta_bad2(params, scenes, crops_by_bucket, static_by_bucket):
 
 
 def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARCHED):
-    """Search the fields ``searched`` on ``train``; log held-out crop WTA bad 2.0 on ``val``
+    """Search the options ``searched`` on ``train``; log held-out crop WTA bad 2.0 on ``val``
     (or train) scenes.
 
     ``train`` is a list of scenes, or a list of groups of scenes (one per data set): then each
@@ -118,18 +133,14 @@ def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARC
     out.mkdir(parents=True, exist_ok=True)
     ckpt, log_path = out / "checkpoint.pkl", out / "log.json"
     area = float(np.mean([s.left.shape[0] * s.left.shape[1] for s in train]))
-    statics = {
-        b: base.static._replace(n_segments=tuning.crop_segments(base.static.n_segments, args.crop * w, area))
-        for b, (_, w) in enumerate(BUCKETS)
-    }
+    full = 0 if base.segments is None else base.segments.n_segments
+    segments = {b: tuning.crop_segments(full, args.crop * w, area) for b, (_, w) in enumerate(BUCKETS)}
     by_group = [{b: [s for s in g if bucket_of(s) == b] for b in range(len(BUCKETS))} for g in groups]
-    group_probs = []
-    for by_bucket in by_group:
-        probs = np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float)
-        group_probs.append(probs / probs.sum())
+    counts = [np.array([len(by_bucket[b]) for b in range(len(BUCKETS))], float) for by_bucket in by_group]
+    group_probs = [c / c.sum() for c in counts]
     # Adam; the --freeze keys get optax.set_to_zero() (multi_transform), so they never move
     optimizer = tuning.make_optimizer(args.lr, frozen=args.freeze)
-    raw = tuning.to_unconstrained(base.dynamic, temperature=args.temperature, searched=searched)
+    raw = tuning.to_unconstrained(base, temperature=args.temperature, searched=searched)
     opt_state = optimizer.init(raw)
     rng = np.random.default_rng(args.seed)
     log = {"train_scenes": [s.name for s in train], "val_scenes": [s.name for s in val],
@@ -145,7 +156,7 @@ def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARC
         return {k: np.asarray(v, np.float32) for k, v in ema.items()}
 
     if step >= args.steps:
-        log["temperature"] = float(tuning.from_unconstrained(averaged(), base=base.dynamic)[1])
+        log["temperature"] = float(tuning.from_unconstrained(averaged(), base=base)[1])
         return tuning.raw_to_params(averaged(), base), log
     # fixed validation crops (own RNG, so resuming does not change them)
     vrng = np.random.default_rng(args.seed + 1000)
@@ -155,18 +166,17 @@ def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARC
         n = args.val_crops if b == 0 else max(1, args.val_crops // 4)
         vcrops[b] = tuning.random_crops(pool, vrng, batch=n, height=args.crop, width=w,
                                         min_valid=args.min_valid) if pool else None
-    steps_fn = {b: tuning.make_update_step(optimizer, static=statics[b], ndisp=BUCKETS[b][0],
-                                           base=base.dynamic)
+    steps_fn = {b: tuning.make_update_step(optimizer, base=with_segments(base, segments[b]),
+                                           ndisp=BUCKETS[b][0])
                 for b in range(len(BUCKETS)) if any(g[b] for g in by_group)}
 
     def validate(at):
-        value = crop_wta_bad2(tuning.raw_to_params(averaged(), base), val, vcrops, statics)
+        value = crop_wta_bad2(tuning.raw_to_params(averaged(), base), vcrops, segments)
         log["val"].append([at, value])
         return value
 
-    if not log["val"] or log["val"][-1][0] < step:
-        if step == 0:
-            validate(0)
+    if step == 0 and not log["val"]:
+        validate(0)
     bar = tqdm(total=args.steps, initial=step, desc=desc, unit="step")
     start = time.perf_counter()
     while step < args.steps:
@@ -192,7 +202,7 @@ def run_search(train, val, out: Path, base, args, desc, *, searched=tuning.SEARC
             write_json(log_path, log)
     bar.close()
     params = tuning.raw_to_params(averaged(), base)
-    _, temperature = tuning.from_unconstrained(averaged(), base=base.dynamic)
+    _, temperature = tuning.from_unconstrained(averaged(), base=base)
     log["temperature"] = float(temperature)
     write_json(log_path, log)
     return params, log
@@ -208,65 +218,6 @@ def evaluate(params, scenes, path: Path, desc, *, scoring=MIDDEVAL3_SCORING):
     data = {r.scene: r.metrics for r in results}
     write_json(path, data)
     return data
-
-
-def weighted(per_scene: dict) -> dict:
-    return {region: {k: weighted_average({s: m[region][k] for s, m in per_scene.items()})
-                     for k in ("bad2.0", "bad1.0", "bad0.5")} for region in ("nonocc", "all")}
-
-
-def summarise(per_scene: dict, scoring) -> dict:
-    """``{region: {metric: average}}`` of per-scene metrics under a data set's ``scoring``
-    (:data:`sswjax.evaluation.runner.SCORINGS`: MiddEval3 weighted, the others plain means)."""
-    out = {}
-    for region in ("nonocc", "all"):
-        if not all(region in m for m in per_scene.values()):
-            continue
-        out[region] = {}
-        for key in scoring.keys:
-            values = {s: m[region][key] for s, m in per_scene.items()}
-            out[region][key] = (weighted_average(values, weights=scoring.weights)
-                                if scoring.average == "weighted"
-                                else float(np.mean(list(values.values()))))
-    return out
-
-
-TABLE_ROWS = {  # data set -> (region, metric keys) of its held-out row, as the README reports it
-    "MiddEval3": ("both", ("bad2.0", "bad1.0", "bad0.5")),
-    "KITTI2012": ("all", ("bad2.0", "bad3.0")),
-}
-
-
-def results_markdown(results: dict) -> str:
-    """The held-out table (one row per fold and metric) and the searched values, as Markdown."""
-    base = results["pipeline"]
-    lines = [f"| held out | searched on | metric | `{base}` | searched |", "|---|---|---|---|---|"]
-    for fold in results["folds"]:
-        region, keys = TABLE_ROWS.get(fold["held_out"], ("all", ("bad2.0",)))
-        for key in keys:
-            if region == "both":
-                what = f"{key[:3]} {key[3:]} nonocc / all (weighted)"
-                cells = [f"{fold[c]['nonocc'][key]:.2f} / {fold[c]['all'][key]:.2f}"
-                         for c in (base, "searched")]
-            else:
-                what = f"{key[:3]} {key[3:]} (mean over scenes)"
-                cells = [f"{fold[c][region][key]:.2f}" for c in (base, "searched")]
-            lines.append(f"| {fold['held_out']} | {' + '.join(fold['trained_on'])} | {what} | "
-                         f"{cells[0]} | {cells[1]} |")
-    fields = results["searched_fields"]
-    lines += ["", "| parameters | " + " | ".join(fields) + " | temperature |",
-              "|---|" + "---|" * (len(fields) + 1)]
-    first = results["folds"][0]
-    lines.append(f"| `{base}` (start) | " + " | ".join(f"{first['start'][k]:.4g}" for k in fields)
-                 + " | |")
-    for fold in results["folds"]:
-        lines.append(f"| searched without {fold['held_out']} | "
-                     + " | ".join(f"{fold['params'][k]:.4g}" for k in fields)
-                     + f" | {fold['temperature']:.3g} |")
-    if "final_params" in results:
-        lines.append("| searched on all sets | " + " | ".join(
-            f"{results['final_params'][k]:.4g}" for k in fields) + " | |")
-    return "\n".join(lines) + "\n"
 
 
 def base_params(args):
@@ -306,8 +257,8 @@ def run_dataset_cv(args, base, searched, t0):
                              f"{args.pipeline} on {held}", scoring=scoring)
         results["folds"].append({
             "held_out": held, "trained_on": others,
-            "params": {k: float(getattr(params.dynamic, k)) for k in searched},
-            "start": {k: float(getattr(base.dynamic, k)) for k in searched},
+            "params": {k: float(tuning.value_of(params, k)) for k in searched},
+            "start": {k: float(tuning.value_of(base, k)) for k in searched},
             "temperature": log.get("temperature"),
             "search_seconds": log.get("seconds"),
             "searched": summarise(searched_eval, scoring),
@@ -318,11 +269,9 @@ def run_dataset_cv(args, base, searched, t0):
         params, _ = run_search([prepared[n] for n in names], [s for n in names for s in prepared[n]],
                                args.out / "final", base, args, "final (all sets)", searched=searched)
         save_params(args.out / "final" / "params.json", params)
-        results["final_params"] = {k: float(getattr(params.dynamic, k)) for k in searched}
+        results["final_params"] = {k: float(tuning.value_of(params, k)) for k in searched}
     results["seconds"] = time.perf_counter() - t0
     write_json(args.out / "results.json", results)
-    from sswjax.data.io import atomic_output
-
     with atomic_output(args.out / "results.md") as tmp:
         Path(tmp).write_text(results_markdown(results))
     print(json.dumps(results["folds"], indent=1), flush=True)
@@ -331,41 +280,39 @@ def run_dataset_cv(args, base, searched, t0):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "runs" / "main")
-    parser.add_argument("--steps", type=int, default=150, help="optimizer steps per search")
-    parser.add_argument("--batch", type=int, default=2, help="crops per step")
-    parser.add_argument("--crop", type=int, default=64, help="crop height (widths per bucket)")
-    parser.add_argument("--folds", type=folds_option, default=3,
-                        help="number of leave-scenes-out folds of trainingQ, or 'datasets': "
-                             "leave one data set of --datasets out")
-    parser.add_argument("--pipeline", choices=("paper", "accurate"), default="paper",
-                        help="paper: aggregated cost -> soft-argmin, searching the weights, "
-                             "truncations, segment weight (from --init); accurate: the accurate "
-                             "preset, through its SGM optimiser, searching the truncations and "
-                             f"the penalties ({', '.join(tuning.SGM_SEARCHED)})")
-    parser.add_argument("--datasets", type=Path, nargs="+", default=DATASETS,
-                        help="data folders of --folds datasets (any layout)")
-    parser.add_argument("--min-valid", type=float, default=0.0,
-                        help="share of valid ground-truth pixels a crop needs (redrawn until "
-                             "it has it; for sparse ground truth such as KITTI's)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--lr", type=float, default=0.02)
-    parser.add_argument("--ema", type=float, default=0.95,
-                        help="decay of the moving average of the iterates (the result); 0 = last")
-    parser.add_argument("--temperature", type=float, default=None,
-                        help="initial soft-argmin temperature (default 0.02, times the paths "
-                             "with an SGM optimiser: its volume sums them)")
-    parser.add_argument("--freeze", nargs="*", default=[], choices=tuning.ALL_RAW_KEYS,
-                        help="raw variables kept at their initial value (e.g. weight_logits): "
-                             "optax.set_to_zero() for them, Adam for the rest (tuning.make_optimizer)")
-    parser.add_argument("--val-every", type=int, default=25)
-    parser.add_argument("--val-crops", type=int, default=4)
-    parser.add_argument("--checkpoint-every", type=int, default=10)
-    parser.add_argument("--init", type=Path, default=ROOT / "params" / "hand.json")
-    parser.add_argument("--no-final", action="store_true", help="skip the search on all scenes")
-    parser.add_argument("--write-tuned", type=Path, default=ROOT / "params" / "tuned.json")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue an existing --out (otherwise it must not hold a run)")
+    add = parser.add_argument
+    add("--out", type=Path, default=ROOT / "runs" / "main")
+    add("--steps", type=int, default=150, help="optimizer steps per search")
+    add("--batch", type=int, default=2, help="crops per step")
+    add("--crop", type=int, default=64, help="crop height (widths per bucket)")
+    add("--folds", type=folds_option, default=3, help="number of leave-scenes-out folds of "
+        "trainingQ, or 'datasets': leave one data set of --datasets out")
+    add("--pipeline", choices=("paper", "accurate"), default="paper",
+        help="paper: aggregated cost -> soft-argmin, searching the weights, truncations, segment "
+             "weight (from --init); accurate: the accurate preset, through its SGM optimiser, "
+             f"searching the truncations and the penalties ({', '.join(tuning.SGM_SEARCHED)})")
+    add("--datasets", type=Path, nargs="+", default=DATASETS,
+        help="data folders of --folds datasets (any layout)")
+    add("--min-valid", type=float, default=0.0, help="share of valid ground-truth pixels a crop "
+        "needs (redrawn until it has it; for sparse ground truth such as KITTI's)")
+    add("--seed", type=int, default=0)
+    add("--lr", type=float, default=0.02)
+    add("--ema", type=float, default=0.95,
+        help="decay of the moving average of the iterates (the result); 0 = last")
+    add("--temperature", type=float, default=None, help="initial soft-argmin temperature "
+        "(default 0.02, times the paths with an SGM optimiser: its volume sums them)")
+    add("--freeze", nargs="*", default=[], type=freeze_key, choices=tuning.all_raw_keys(),
+        metavar="KEY", help="raw variables kept at their initial value, one of %(choices)s (old "
+        "names such as weight_logits or sgm_p2 too): optax.set_to_zero() for them, Adam for the "
+        "rest (sswjax.search.make_optimizer)")
+    add("--val-every", type=int, default=25)
+    add("--val-crops", type=int, default=4)
+    add("--checkpoint-every", type=int, default=10)
+    add("--init", type=Path, default=ROOT / "params" / "hand.json")
+    add("--no-final", action="store_true", help="skip the search on all scenes")
+    add("--write-tuned", type=Path, default=ROOT / "params" / "tuned.json")
+    add("--resume", action="store_true",
+        help="continue an existing --out (otherwise it must not hold a run)")
     args = parser.parse_args(argv)
     # every check before anything is written
     if (args.out / "config.json").exists() and not args.resume:
@@ -379,8 +326,7 @@ def main(argv=None):
     if unknown:
         parser.error(f"--freeze {' '.join(unknown)}: not searched with --pipeline {args.pipeline}")
     if args.temperature is None:
-        paths = base.static.sgm_paths if base.static.optimizer != "none" else 1
-        args.temperature = 0.02 * paths
+        args.temperature = 0.02 * (base.optimizer.paths if base.optimizer is not None else 1)
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python tuning/search.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
     config = {k: str(v) if isinstance(v, Path) else [str(p) for p in v] if k == "datasets" else v
@@ -391,14 +337,12 @@ def main(argv=None):
     t0 = time.perf_counter()
     if args.folds == "datasets":
         run_dataset_cv(args, base, searched, t0)
-        from plot import plot_run  # tuning/plot.py
-
         plot_run(args.out, args.out / "curves.png")
         print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
         return
     hand = base
-    root = sswjax.data.datasets.find_data_root()
-    raw_scenes = sswjax.data.datasets.load_middeval3(root)
+    root = find_data_root()
+    raw_scenes = load_middeval3(root)
     scenes = [tuning.prepare_scene(s) for s in raw_scenes]
     names = [s.name for s in scenes]
     order = np.random.default_rng(args.seed).permutation(len(scenes))
@@ -412,7 +356,7 @@ def main(argv=None):
         val = [s for s in scenes if s.name in held]
         params, _ = run_search(train, val, args.out / f"fold{k}", hand, args, f"fold {k}")
         save_params(args.out / f"fold{k}" / "params.json", params)
-        fold_params.append(params.to_dict()["dynamic"])
+        fold_params.append(params.to_dict())
         held_raw = [s for s in raw_scenes if s.name in held]
         searched_eval.update(evaluate(params, held_raw, args.out / f"eval_fold{k}.json", f"fold {k}"))
     cv = {"folds": folds, "hand": weighted({s: hand_eval[s] for s in searched_eval}),
@@ -429,31 +373,25 @@ def main(argv=None):
         cv["hand_full_trainingQ"] = weighted(hand_eval)
         cv["seconds"] = time.perf_counter() - t0 + 0.0
         write_json(args.out / "results.json", cv)
+        bad2 = {c: {r: cv[c][r]["bad2.0"] for r in ("nonocc", "all")}
+                for c in ("hand", "searched", "final_full_trainingQ")}
         provenance = {
-            "how": "optax adam search (moving average of the iterates) of the continuous parameters through soft-argmin on random "
-                   "crops (sswjax.tuning, tuning/search.py), from hand.json; static fields, "
-                   "slic_compactness and lr_tolerance kept as in hand.json",
-            "data": f"MiddEval3 trainingQ, 15 scenes ({root})",
-            "seed": args.seed,
-            "command": command,
-            "date": DATE,
-            "soft_argmin_temperature": log.get("temperature"),
+            "how": "optax adam search (moving average of the iterates) of the continuous "
+                   "parameters through soft-argmin on random crops (sswjax.search, "
+                   "tuning/search.py), from hand.json; static options, segments.compactness and "
+                   "checks.tolerance kept as in hand.json",
+            "data": f"MiddEval3 trainingQ, 15 scenes ({root})", "seed": args.seed,
+            "command": command, "date": DATE, "soft_argmin_temperature": log.get("temperature"),
             "cv_folds": folds,
-            "cv_heldout_weighted_bad2_nonocc": {"hand": cv["hand"]["nonocc"]["bad2.0"],
-                                                "searched": cv["searched"]["nonocc"]["bad2.0"]},
-            "cv_heldout_weighted_bad2_all": {"hand": cv["hand"]["all"]["bad2.0"],
-                                             "searched": cv["searched"]["all"]["bad2.0"]},
-            "full_trainingQ_weighted_bad2": {"nonocc": cv["final_full_trainingQ"]["nonocc"]["bad2.0"],
-                                             "all": cv["final_full_trainingQ"]["all"]["bad2.0"]},
+            **{f"cv_heldout_weighted_bad2_{r}": {c: bad2[c][r] for c in ("hand", "searched")}
+               for r in ("nonocc", "all")},
+            "full_trainingQ_weighted_bad2": bad2["final_full_trainingQ"],
         }
         save_params(args.write_tuned, params, provenance=provenance)
         print(f"wrote {args.write_tuned}", flush=True)
-    from plot import plot_run  # tuning/plot.py
-
     plot_run(args.out, args.out / "curves.png")
     print(f"total {time.perf_counter() - t0:.0f} s", flush=True)
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(ROOT))
     main()
