@@ -8,7 +8,7 @@ another one nor this file: what several files share is a fixture here.
 - ``small_pair``: a 24x40 pair with disparity 3 written in every input form, and broken files.
 - ``middeval3``: builds a MiddEval3-like data folder of three small scenes.
 - ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
-- ``run_cli``: ``sswjax.cli.main`` in process, returning ``(exit code, stdout, stderr)``.
+- ``run_cli``: the command line's ``main`` (``sswjax.cli``) in process, returning ``(exit code, stdout, stderr)``.
 - ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
 """
 

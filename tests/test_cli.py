@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import subprocess
 import sys
 
@@ -10,8 +13,13 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.cli import main
+from sswjax.cli import guard, main
+from sswjax.cli import match as cli_match
+from sswjax.config.fields import option_fields
+from sswjax.config.parts import unregister
 from sswjax.data.io import read_image, read_pfm, write_pfm
+from sswjax.runtime import memory
+from sswjax.runtime.memory import MemoryEstimateError
 
 NDISP = 12
 
@@ -178,3 +186,206 @@ def test_match_bad_preset_one_line_exit_2(pair, tmp_path, capsys, args, message)
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err
     assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- --set, sswjax params
+
+
+def _params_json(run_cli, *args):
+    """The parameters ``sswjax params ARGS`` prints, loaded back as ``--params`` would."""
+    code, out, err = run_cli(["params", *args])
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["format"] == "sswjax-params/2"
+    return sswjax.config.params_from_dict(data)
+
+
+@pytest.mark.parametrize("preset", sorted(sswjax.PRESETS))
+def test_params_prints_a_file_that_loads_as_the_preset(run_cli, tmp_path, preset):
+    assert _params_json(run_cli, "--preset", preset) == sswjax.preset(preset)
+    path = tmp_path / f"{preset}.json"
+    code, out, err = run_cli(["params", "--preset", preset, "-o", path])
+    assert code == 0 and out == f"wrote {path}\n", err
+    assert sswjax.load_params(path) == sswjax.preset(preset)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # atomic: no debris
+    # the default is the default preset, and a file goes round unchanged
+    assert _params_json(run_cli) == sswjax.default_params()
+    assert _params_json(run_cli, "--params", path) == sswjax.preset(preset)
+
+
+def test_set_changes_a_stage_and_options(run_cli):
+    params = _params_json(run_cli, "--preset", "paper", "--set", "fill=vote", "--set",
+                          "optimizer=sgm", "--set", "optimizer.p2=1.2", "--set",
+                          "checks.uniqueness_gap=2", "--set", "refinement=none",
+                          "--set", 'aggregation={"kind": "box", "radius": 3}')
+    expected = sswjax.preset("paper").replace(
+        fill={"kind": "vote"}, optimizer={"kind": "sgm"}, refinement=None,
+        aggregation={"kind": "box", "radius": 3},
+        **{"optimizer.p2": 1.2, "checks.uniqueness_gap": 2})
+    assert params == expected
+    assert params.fill.kind == "vote" and params.optimizer.p2 == 1.2 and params.refinement is None
+    # a JSON integer for a traced option is stored as a float, like a file's
+    assert type(_params_json(run_cli, "--set", "optimizer.p2=1").optimizer.p2) is float
+    # later settings win, "null" turns a stage off too
+    assert _params_json(run_cli, "--set", "coarse=halving", "--set", "coarse=null").coarse is None
+
+
+@pytest.mark.parametrize("setting, message", [
+    ("bogus=1", "--set bogus=1: unknown parameter 'bogus': name a stage (preprocess, cost,"),
+    ("fill=nope", "--set fill=nope: unknown fill kind 'nope'; choose from background,"),
+    ("fill.nope=1", "--set fill.nope=1: fill 'vote' has no option 'nope'"),
+    ("nostage.p2=1", "--set nostage.p2=1: unknown parameter 'nostage.p2'"),
+    ("optimizer.p2=-1", "--set optimizer.p2=-1: parameter optimizer.p2 must be a number >= 0"),
+    ("optimizer.paths=true", "parameter optimizer.paths must be one of 4, 8, got True"),
+    ("cost=none", "--set cost=none: stage cost cannot be None"),
+    ("fill=3", "--set fill=3: stage fill takes a kind (none, background,"),
+    ('fill={"kind": [1]}', "stage fill: \"kind\" must be one of background,"),
+    ("checks=none", "fills what the checks reject: with checks None, set fill to None too"),
+    ("strip_rows=64", "strip_rows is how a call runs, not a parameter: use --strip-rows"),
+    ("novalue", "argument --set: expected PATH=VALUE (a stage or stage.option), got 'novalue'"),
+])
+def test_bad_set_one_line_exit_2(pair, run_cli, tmp_path, setting, message):
+    out = tmp_path / "d.pfm"
+    code, stdout, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
+                                 "-o", out, "--set", setting])
+    assert code == 2 and stdout == "", err
+    assert err.startswith("sswjax: error: ") and err.count("\n") == 1 and message in err, err
+    assert not out.exists()
+
+
+def test_set_reaches_the_matcher(pair, tmp_path, run_cli):
+    out = tmp_path / "d.pfm"
+    code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
+                            "-o", out, "--preset", "paper", "--set", "segments=none",
+                            "--set", "refinement.iterations=1"])
+    assert code == 0, err
+    params = sswjax.preset("paper").replace(segments=None, **{"refinement.iterations": 1})
+    expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
+                            params=params)
+    np.testing.assert_array_equal(read_pfm(out), expected)
+
+
+def test_params_list_names_every_stage_kind_and_option(run_cli):
+    code, out, err = run_cli(["params", "--list"])
+    assert code == 0, err
+    for slot in sswjax.config.SLOTS:
+        assert f"\n{slot} (" in out
+        for kind, cls in sswjax.config.kinds(slot).items():
+            assert f"  {kind}: {cls.summary()}" in out
+            for name, spec in option_fields(cls):
+                assert f"{slot}.{name}" in out and spec.describe() in out
+    assert "optimizer.p2" in out and "traced" in out and "static" in out
+    code, _, err = run_cli(["params", "--list", "--preset", "paper"])
+    assert code == 2 and err == "sswjax: error: --list prints the catalogue of stages: it takes no --preset\n"
+
+
+def test_a_part_registered_at_run_time_is_on_the_command_line(run_cli):
+    @sswjax.config.register("preprocess", "toy")
+    class Toy(sswjax.config.Preprocessor):
+        """A toy pre-processor: the images times a gain."""
+
+        gain: float = sswjax.config.option(2.0, above=0, help="factor of every intensity")
+
+        def apply(self, image):
+            return image * self.gain
+
+    try:
+        code, out, _ = run_cli(["params", "--list"])
+        assert code == 0
+        assert "  toy: A toy pre-processor: the images times a gain." in out
+        assert "preprocess.gain  traced  a number > 0, default 2: factor of every intensity" in out
+        params = _params_json(run_cli, "--set", "preprocess=toy", "--set", "preprocess.gain=3")
+        assert isinstance(params.preprocess, Toy) and params.preprocess.gain == 3.0
+        code, _, err = run_cli(["params", "--set", "preprocess.gain=0"])
+        assert code == 2 and "stage preprocess is None" in err
+        assert "toy" in main_parser_help(["match", "--help"])
+    finally:
+        unregister("preprocess", "toy")
+
+
+def main_parser_help(argv) -> str:
+    """The help text of ``sswjax ARGV`` (with ``--help``)."""
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text), pytest.raises(SystemExit):
+        main(argv)
+    return text.getvalue()
+
+
+def test_match_help_points_to_the_catalogue():
+    text = " ".join(main_parser_help(["match", "--help"]).split())
+    assert "sswjax params --list" in text and "--strip-rows N" in text
+    for preset in sswjax.PRESETS:
+        assert f"{preset}:" in text
+
+
+# ----------------------------------------------------------------------------- the execution plan
+
+
+@pytest.fixture()
+def recorded_match(monkeypatch):
+    """``sswjax match``'s matcher replaced by a recorder of its keyword arguments."""
+    calls = []
+
+    def match(left, right, ndisp, **kwargs):
+        calls.append(kwargs)
+        return np.zeros(left.shape[:2], np.float32)
+
+    monkeypatch.setattr(cli_match, "match", match)
+    return calls
+
+
+def test_old_flat_file_strips_are_honoured_and_overridden(pair, tmp_path, run_cli, recorded_match):
+    params = tmp_path / "old.json"
+    params.write_text('{"static": {"strip_rows": 16, "strip_overlap": 8, "n_segments": 0}}')
+    argv = ["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP, "-o",
+            tmp_path / "d.pfm", "--params", params]
+    assert run_cli(argv)[0] == 0
+    plan = recorded_match[-1]["plan"]
+    assert (plan.strip_rows, plan.strip_overlap, plan.disparity_chunk) == (16, 8, 4)
+    assert recorded_match[-1]["params"].segments is None
+    assert run_cli(argv + ["--strip-rows", 20, "--disparity-chunk", 0])[0] == 0
+    plan = recorded_match[-1]["plan"]
+    assert (plan.strip_rows, plan.strip_overlap, plan.disparity_chunk) == (20, 8, 0)
+    params.write_text('{"strip_rows": -3}')
+    code, _, err = run_cli(argv)
+    assert code == 2 and err == f"sswjax: error: {params}: strip_rows must be an integer >= 0, got -3\n"
+    code, _, err = run_cli(argv[:-2] + ["--strip-rows", "-1"])
+    assert code == 2 and "argument --strip-rows: must be an integer >= 0, got '-1'" in err
+
+
+def test_strips_from_an_old_flat_file_match_as_the_api(pair, tmp_path, run_cli):
+    params = tmp_path / "old.json"
+    params.write_text('{"strip_rows": 16, "strip_overlap": 8}')
+    out = tmp_path / "d.pfm"
+    code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
+                            "-o", out, "--params", params])
+    assert code == 0, err
+    expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
+                            params=sswjax.Params(),
+                            plan=sswjax.ExecutionPlan(strip_rows=16, strip_overlap=8))
+    np.testing.assert_array_equal(read_pfm(out), expected)
+
+
+def test_memory_guard_chooses_strips_or_names_the_options(monkeypatch, capsys):
+    # A model in which a plan costs 1 MB per row of its strips (the whole image: 10 000 rows).
+    def model(height, width, ndisp, *, plan=None, **_):
+        return ((plan.strip_rows if plan is not None and plan.strip_rows else 10**4)
+                * 1_000_000)
+
+    monkeypatch.setattr(memory, "estimate_peak_bytes", model)
+    monkeypatch.setattr(guard, "estimate_peak_bytes", model)
+    monkeypatch.setattr(memory, "available_bytes", lambda: None)
+    params, whole = sswjax.Params(), sswjax.ExecutionPlan()
+    fitted = guard.guard_memory([(200, 300, 3)], 16, params=params, plan=whole, limit_gb=0.1)
+    assert fitted == whole._replace(strip_rows=96)  # the tallest strips under 0.1 GB
+    assert capsys.readouterr().err == ("sswjax: note: matching in strips of 96 rows to fit in "
+                                       "memory (about 0.10 GB)\n")
+    with pytest.raises(MemoryEstimateError) as error:  # the user's strips are too tall
+        guard.guard_memory([(200, 300, 3)], 16, params=params,
+                           plan=whole._replace(strip_rows=128), limit_gb=0.1)
+    assert str(error.value) == ("a 300x200 pair with ndisp 16 needs about 0.13 GB, more than "
+                                "the limit (0.10 GB): match in strips with --strip-rows 96 "
+                                "(about 0.10 GB), or a smaller ndisp or image")
+    with pytest.raises(MemoryEstimateError, match=r"even strips of 16 rows do not fit\), or a "
+                                                  r"larger --max-memory$"):
+        guard.guard_memory([(200, 300, 3)], 16, params=params, plan=whole, limit_gb=0.01)

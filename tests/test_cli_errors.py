@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -94,8 +95,6 @@ def _drop_privileges_and_run(argv, err_path: Path) -> int:
 
 
 def test_match_unreadable_image(files, run_cli):
-    import tempfile
-
     folder = Path(tempfile.mkdtemp(prefix="sswjax-unreadable-"))  # traversable by nobody
     try:
         folder.chmod(0o755)
@@ -120,21 +119,21 @@ def test_match_unreadable_image(files, run_cli):
     "content, message",
     [
         ('{"dynamic": {"tad_truncation": NaN}}',
-         "parameter tad_truncation must be a finite number > 0, got nan"),
-        ('{"tad_truncation": Infinity}', "parameter tad_truncation must be a finite number > 0, got inf"),
+         "parameter tad_truncation must be finite in float32 (the graph's dtype), got nan"),
+        ('{"tad_truncation": Infinity}', "parameter tad_truncation must be finite in float32 (the graph's dtype), got inf"),
         ('{"dynamic": {"tad_truncation": -0.1}}',
-         "parameter tad_truncation must be a finite number > 0, got -0.1"),
-        ('{"census_weight": -1}', "parameter census_weight must be a finite number >= 0, got -1.0"),
-        ('{"static": {"census_width": 17}}', "parameter census_width must be in [1, 15], got 17"),
-        ('{"static": {"census_height": 8}}', "parameter census_height must be odd, got 8"),
-        ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be in [0, 7], got -1"),
+         "parameter tad_truncation must be a number > 0, got -0.1"),
+        ('{"census_weight": -1}', "parameter census_weight must be a number >= 0, got -1.0"),
+        ('{"static": {"census_width": 17}}', "parameter census_width must be an odd integer in [1, 15], got 17"),
+        ('{"static": {"census_height": 8}}', "parameter census_height must be an odd integer in [1, 15], got 8"),
+        ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be an integer in [1, 7], got -1"),
         ('{"static": {"fill_radius": 8}}', "parameter fill_radius must be in [0, 5] with fill_median 'square', got 8"),
-        ('{"static": {"fill_radius": 16, "fill_median": "separable"}}', "parameter fill_radius must be in [0, 15], got 16"),
+        ('{"static": {"fill_radius": 16, "fill_median": "separable"}}', "parameter fill_radius must be an integer in [0, 15], got 16"),
         ('{"static": {"radius": 3}}', "unknown static parameter 'radius'"),
         ('{"bogus": 1}', "unknown parameter 'bogus'"),
-        ('{"static": {"census_width": "9"}}', "parameter census_width must be an integer, got '9'"),
+        ('{"static": {"census_width": "9"}}', "parameter census_width must be an odd integer in [1, 15], got '9'"),
         ('{"lr_check": "yes"}', "parameter lr_check must be true or false, got 'yes'"),
-        ('{"census_weight": null}', "parameter census_weight must be a number, got None"),
+        ('{"census_weight": null}', "parameter census_weight must be a number >= 0, got None"),
         ("[1, 2]", "parameters must be a JSON object, got list"),
         ("{not json", "cannot read parameter file {p}: Expecting property name"),
         (b"\xff\xfe{}", "cannot read parameter file {p}: 'utf-8' codec can't decode"),
@@ -170,7 +169,7 @@ def test_debug_shows_the_traceback(files, tmp_path):
     debug = subprocess.run(CLI + ["--debug"] + argv, capture_output=True, text=True, timeout=120)
     assert debug.returncode == 1
     assert debug.stderr.startswith("Traceback (most recent call last):")
-    assert "sswjax.data.files.InputError: image not found" in debug.stderr
+    assert "sswjax._files.InputError: image not found" in debug.stderr
 
 
 # ----------------------------------------------------------------------------- sswjax evaluate

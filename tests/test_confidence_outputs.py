@@ -9,7 +9,7 @@ import sswjax
 from sswjax.data.io import read_pfm
 from sswjax.stages.confidence import LEFT_BAND, LOW_CONFIDENCE, LR_FAILED
 
-PARAMS = sswjax.preset("paper").replace(n_segments=0)
+PARAMS = sswjax.preset("paper").replace(segments=None)
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +42,8 @@ def test_match_with_confidence_is_match_with_more(pair):
 def test_strips_and_buckets_stitch_every_output(pair):
     whole = sswjax.match_with_confidence(*pair, 12, params=PARAMS)
     # Without superpixels every stage sees a few rows around a pixel: exact strips.
-    strips = sswjax.match_with_confidence(*pair, 12, params=PARAMS.replace(strip_rows=20,
-                                                                          strip_overlap=24))
+    strips = sswjax.match_with_confidence(*pair, 12, params=PARAMS, plan=sswjax.ExecutionPlan(
+        strip_rows=20, strip_overlap=24))
     for name in sswjax.Matched._fields:
         np.testing.assert_array_equal(getattr(strips, name), getattr(whole, name), err_msg=name)
     bucketed = sswjax.match_with_confidence(*pair, 12, params=PARAMS,
@@ -59,9 +59,9 @@ def test_strips_and_buckets_stitch_every_output(pair):
 
 
 def test_sgm_outputs_and_min_disp(pair):
-    params = sswjax.preset("accurate").replace(strip_rows=40, strip_overlap=16)
-    out = sswjax.match_with_confidence(*pair, 12, params=params)
-    np.testing.assert_array_equal(out.disparity, sswjax.match(*pair, 12, params=params))
+    params, plan = sswjax.preset("accurate"), sswjax.ExecutionPlan(strip_rows=40, strip_overlap=16)
+    out = sswjax.match_with_confidence(*pair, 12, params=params, plan=plan)
+    np.testing.assert_array_equal(out.disparity, sswjax.match(*pair, 12, params=params, plan=plan))
     assert np.median(out.confidence[35:55, 30:40]) > 0.2
     # A range starting at 2: the band is judged on the final disparity (x - d < 0).
     shifted = sswjax.match_with_confidence(*pair, 10, min_disp=2, params=PARAMS)

@@ -9,7 +9,8 @@ import pytest
 
 import sswjax
 from sswjax.data.io import read_pfm, write_pfm
-from sswjax.folders import folder_pairs, image_size
+from sswjax.cli import folders as cli_folders
+from sswjax.cli.folders import folder_pairs, image_size
 
 SIZES = {"b.png": (24, 40), "a.png": (30, 48), "c.png": (24, 40)}  # two shapes
 SHIFT = 3
@@ -33,12 +34,12 @@ def folders(tmp_path, texture):
 
 @pytest.fixture()
 def fake_match(monkeypatch):
-    """``sswjax.match`` replaced by a recorder returning the pair's width as disparity; the
-    call ``fail_at`` (if set) raises KeyboardInterrupt."""
+    """The folder command's ``match`` replaced by a recorder returning the pair's width as
+    disparity; the call ``fail_at`` (if set) raises KeyboardInterrupt."""
     calls = []
 
     def match(left, right, ndisp, **kwargs):
-        calls.append((left.shape[:2], kwargs.get("buckets")))
+        calls.append((left.shape[:2], kwargs["plan"].buckets))
         if len(calls) == fake.fail_at:
             raise KeyboardInterrupt
         return np.full(left.shape[:2], float(left.shape[1]), np.float32)
@@ -48,7 +49,7 @@ def fake_match(monkeypatch):
 
     fake = Fake()
     fake.calls = calls
-    monkeypatch.setattr(sswjax, "match", match)
+    monkeypatch.setattr(cli_folders, "match", match)
     return fake
 
 

@@ -18,8 +18,9 @@ import warnings
 import numpy as np
 import pytest
 
-import sswjax
+from sswjax.cli import match as cli_match
 from sswjax.data.io import read_pfm, write_pfm
+from sswjax.evaluation import methods
 
 CLI = [sys.executable, "-m", "sswjax.cli"]
 
@@ -109,7 +110,7 @@ def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(sswjax, "match", interrupted)
+    monkeypatch.setattr(cli_match, "match", interrupted)
     files = small_pair.folder
     argv = ["match", files / "left.png", files / "right.png", "--ndisp", small_pair.ndisp, "-o", out]
     code, _, err = run_cli(argv)
@@ -120,8 +121,6 @@ def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, 
 @pytest.fixture()
 def fake_method(monkeypatch, middeval3):
     """A method "fake" without JAX: disparity 3 everywhere; counts its calls per scene width."""
-    from sswjax import registry
-
     calls = []
 
     def fake(left, right, ndisp):
@@ -130,7 +129,7 @@ def fake_method(monkeypatch, middeval3):
             raise KeyboardInterrupt
         return np.full(left.shape[:2], middeval3.shift, np.float32)
 
-    monkeypatch.setitem(registry.PEERS, "fake", registry.Peer(fake, "a stand-in without JAX"))
+    monkeypatch.setitem(methods.PEERS, "fake", methods.Peer(fake, "a stand-in without JAX"))
     fake.calls = calls
     return fake
 
@@ -180,3 +179,14 @@ def test_evaluate_resume_recomputes_only_missing_or_damaged_scenes(tmp_path, run
 
     rows = (out / "metrics.csv").read_text().splitlines()
     assert rows[1:] == [with_time(r) for r in first_csv.splitlines()[1:]]  # same metrics, its time
+
+
+def test_evaluate_says_an_old_files_strips_do_not_apply(tmp_path, run_cli, middeval3, fake_method):
+    root = middeval3(tmp_path / "MiddEval3")
+    params = tmp_path / "old.json"
+    params.write_text('{"strip_rows": 16, "strip_overlap": 32, "n_segments": 0}')
+    code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "--params", params])
+    assert code == 0, err
+    assert (f"sswjax: note: strip_rows=16 in {params} is how a call runs, not a parameter: "
+            "evaluate chooses strips only where memory needs them (sswjax match takes "
+            "--strip-rows)") in err

@@ -14,8 +14,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 
+from sswjax._files import atomic_output
+from sswjax.data.io import write_pfm
 from sswjax.stages.confidence import DEFAULT_THRESHOLD
 
 __all__ = ["add_confidence_options", "invalid_as_inf", "wants_confidence", "write_confidence_outputs"]
@@ -81,14 +84,10 @@ def write_confidence_outputs(matched, *, confidence: Path | None, validity: Path
 
     Parameters
     ----------
-    matched : sswjax.Matched
+    matched : sswjax.api.match.Matched
+        confidence float32 (H, W), validity uint8 (H, W).
     confidence, validity : pathlib.Path or None
     """
-    import imageio.v3 as iio
-
-    from sswjax.data.files import atomic_output
-    from sswjax.data.io import write_pfm
-
     if confidence is not None:
         write_pfm(confidence, matched.confidence)
     if validity is not None:

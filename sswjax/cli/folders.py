@@ -1,16 +1,17 @@
-"""``sswjax match`` on folders, and the memory guard of ``sswjax match``, from image headers.
+"""``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR``: every pair of two folders.
 
-``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR`` pairs the image files of the same name
-in both folders and writes ``OUT_DIR/<stem>.pfm`` for each. Everything that can fail on the
-user's input is checked before the first pair runs, from the files' headers: the folders,
-the names, each pair's sizes, ``ndisp`` against every width, the output folder, and the memory
-estimate of the largest shape (:mod:`sswjax.memory`). Pairs run sorted by shape (the bucketed
-shape with ``--bucket``), so each shape compiles once; each map is written atomically as soon
-as it is done, so Ctrl-C keeps the finished ones and ``--resume`` skips them.
+The image files of the same name in both folders are pairs; each gives ``OUT_DIR/<stem>.pfm``.
+Everything that can fail on the user's input is checked before the first pair runs, from the
+files' headers: the folders, the names, each pair's sizes, ``ndisp`` against every width, the
+output folder, and the memory estimate of the largest shape (:mod:`sswjax.cli.guard`). Pairs
+run sorted by shape (the bucketed shape with ``--bucket``), so each shape compiles once; each
+map is written atomically as soon as it is done, so Ctrl-C keeps the finished ones and
+``--resume`` skips them.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -18,10 +19,18 @@ from collections import Counter
 from pathlib import Path
 from typing import NamedTuple
 
-from sswjax.data.files import InputError
+from PIL import Image
+from tqdm import tqdm
 
-__all__ = ["IMAGE_SUFFIXES", "FolderPair", "folder_pairs", "guard_memory", "image_size",
-           "match_folders"]
+from sswjax._files import InputError
+from sswjax.api.match import match
+from sswjax.cli.common import Interrupted, command_line, resume_command
+from sswjax.cli.guard import guard_memory
+from sswjax.cli.options import params_from_args, plan_from_args
+from sswjax.data.io import read_image, read_pfm, write_pfm
+from sswjax.runtime.buckets import ShapeBuckets, bucket_shape
+
+__all__ = ["IMAGE_SUFFIXES", "FolderPair", "folder_pairs", "image_size", "match_folders"]
 
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".ppm", ".pgm", ".pbm", ".pnm", ".bmp",
                             ".tif", ".tiff", ".webp"})
@@ -51,54 +60,14 @@ def image_size(path: str | Path) -> tuple[int, int, int]:
     >>> image_size("Motorcycle/im0.png")                # doctest: +SKIP
     (497, 741, 3)
     """
-    from PIL import Image
-
     try:
         with Image.open(path) as image:
             width, height = image.size
             gray = image.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F")
             return height, width, 1 if gray else 3
     except Exception:  # noqa: BLE001 (any failure: read_image gives the message)
-        from sswjax.data.io import read_image
-
         image = read_image(path)
         return image.shape[0], image.shape[1], 1 if image.ndim == 2 else 3
-
-
-def guard_memory(sizes, ndisp: int, *, params, limit_gb: float | None = None, min_disp: int = 0,
-                 buckets=None):
-    """The parameters with which the largest of ``sizes`` fits (strips chosen if it must,
-    :func:`sswjax.memory.fit_in_memory`); :class:`sswjax.memory.MemoryEstimateError` if none.
-
-    Parameters
-    ----------
-    sizes : iterable of (height, width, channels)
-    ndisp, min_disp : int
-        The search range (a negative ``min_disp`` widens the matched frame by ``-min_disp``).
-    params : Params
-    limit_gb : float, optional
-        ``--max-memory`` in GB (1e9 bytes); the available memory applies as well.
-    buckets : ShapeBuckets, optional
-
-    Returns
-    -------
-    Params, ``params`` itself unless strips had to be chosen (a note on stderr says so).
-    """
-    from sswjax.memory import estimate_peak_bytes, fit_in_memory
-
-    pad = max(-int(min_disp), 0)
-    shapes = {(h, w + pad, c) for h, w, c in sizes}
-    largest = max(shapes, key=lambda s: estimate_peak_bytes(s[0], s[1], ndisp, params=params,
-                                                            channels=s[2], buckets=buckets))
-    limit = None if limit_gb is None else limit_gb * 1e9
-    fitted = fit_in_memory(largest[0], largest[1], ndisp, params=params, channels=largest[2],
-                           buckets=buckets, limit=limit)
-    if fitted.static.strip_rows != params.static.strip_rows:
-        estimate = estimate_peak_bytes(largest[0], largest[1], ndisp, params=fitted,
-                                       channels=largest[2], buckets=buckets)
-        print(f"sswjax: note: matching in strips of {fitted.static.strip_rows} rows to fit in "
-              f"memory (about {estimate / 1e9:.2f} GB)", file=sys.stderr)
-    return fitted
 
 
 def _images(folder: Path) -> dict[str, Path]:
@@ -144,8 +113,6 @@ def folder_pairs(left_dir: str | Path, right_dir: str | Path) -> list[FolderPair
 
 def _finished(path: Path, size) -> bool:
     """Whether ``path`` holds a readable PFM of the pair's size (what ``--resume`` keeps)."""
-    from sswjax.data.io import read_pfm
-
     if not path.is_file():
         return False
     try:
@@ -154,15 +121,9 @@ def _finished(path: Path, size) -> bool:
         return False
 
 
-def match_folders(args) -> int:
-    """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket]``."""
-    from tqdm import tqdm
-
-    import sswjax
-    from sswjax.api import ShapeBuckets, bucket_shape
-    from sswjax.cli import Interrupted, _params, _resume_command
-    from sswjax.data.io import read_image, write_pfm
-
+def match_folders(args: argparse.Namespace) -> int:
+    """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket]``;
+    returns the exit status (0)."""
     if os.path.isdir(args.left) != os.path.isdir(args.right):
         folder, other = (args.left, args.right) if os.path.isdir(args.left) else (args.right, args.left)
         raise InputError(f"LEFT and RIGHT must be two image files or two folders: {folder} is a "
@@ -176,16 +137,17 @@ def match_folders(args) -> int:
         raise ValueError(f"output {out} is a file: with folders -o names a folder")
     if not out.parent.is_dir():
         raise ValueError(f"output folder does not exist: {out.parent}")
-    params = _params(args)
+    params, execution = params_from_args(args)
+    buckets = ShapeBuckets() if args.bucket else None
+    plan = plan_from_args(args, execution, buckets=buckets)
     min_disp = getattr(args, "min_disp", 0) or 0
     pairs = folder_pairs(args.left, args.right)
     narrowest = min(pairs, key=lambda p: p.size[1])
     if min_disp == 0 and not 1 <= args.ndisp < narrowest.size[1]:
         raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
                          f"{narrowest.name}, got {args.ndisp}")
-    buckets = ShapeBuckets() if args.bucket else None
-    params = guard_memory([p.size for p in pairs], args.ndisp, params=params,
-                          limit_gb=args.max_memory, min_disp=min_disp, buckets=buckets)
+    plan = guard_memory([p.size for p in pairs], args.ndisp, params=params, plan=plan,
+                        limit_gb=args.max_memory, min_disp=min_disp)
 
     def shape(pair):
         height, width = pair.size[:2]
@@ -196,7 +158,6 @@ def match_folders(args) -> int:
     out.mkdir(exist_ok=True)
     targets = [out / f"{Path(p.name).stem}.pfm" for p in pairs]
     done = [bool(args.resume) and _finished(t, p.size) for p, t in zip(pairs, targets)]
-    kwargs = {"min_disp": min_disp} if min_disp else {}
     start, resumed = time.perf_counter(), sum(done)
     try:
         with tqdm(total=len(pairs), initial=resumed, desc="pairs", unit="pair",
@@ -206,29 +167,15 @@ def match_folders(args) -> int:
                     continue
                 bar.set_postfix_str(pair.name)
                 left, right = read_image(pair.left), read_image(pair.right)
-                disparity = sswjax.match(left, right, args.ndisp, params=params, buckets=buckets,
-                                         check_memory=False, **kwargs)
+                disparity = match(left, right, args.ndisp, min_disp=min_disp, params=params,
+                                  plan=plan, check_memory=False)  # guard_memory checked it
                 write_pfm(target, disparity)
                 done[i] = True
                 bar.update(1)
     except KeyboardInterrupt:
         raise Interrupted(f"interrupted; {sum(done)} of {len(pairs)} disparity maps are saved in "
-                          f"{out}; continue with: "
-                          f"{_resume_command(getattr(args, 'argv', sys.argv[1:]))}") from None
+                          f"{out}; continue with: {resume_command(command_line(args))}") from None
     note = f", {resumed} kept from before" if resumed else ""
     print(f"wrote {len(pairs) - resumed} disparity maps to {out}{note} "
           f"({len({shape(p)[0] for p in pairs})} shapes, {time.perf_counter() - start:.1f} s)")
     return 0
-
-
-def guard_pair(args, params):
-    """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
-    is for folders; the pair (sizes from the headers) must fit in memory, in strips if it must.
-    Returns the parameters to match with."""
-    if args.resume:
-        raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
-    left, right = image_size(args.left), image_size(args.right)
-    if left[:2] == right[:2] and args.ndisp >= 1:  # else sswjax.match reports the problem
-        return guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
-                            limit_gb=args.max_memory, min_disp=getattr(args, "min_disp", 0) or 0)
-    return params

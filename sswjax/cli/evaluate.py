@@ -1,0 +1,209 @@
+"""``sswjax evaluate``: methods over a data folder; tables, CSV, figure, disparities.
+
+The folder's layout (:func:`sswjax.data.layouts.detect_layout`: MiddEval3, KITTI, older
+Middlebury, ETH3D) sets the metrics and their summary (:data:`sswjax.evaluation.runner.SCORINGS`):
+MiddEval3's weighted averages and Table 1, elsewhere means over scenes with bad 3.0 (and D1
+for KITTI). ``--ndisp`` replaces every scene's disparity count.
+
+With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
+Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
+disparities are read back and their metrics recomputed). With ``--bucket`` the SSW methods
+are :class:`~sswjax.evaluation.methods.BucketedSSW`: their scenes run grouped by bucket, one
+pair per JAX device per call, and a scene's time is its call's time divided by the pairs in it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from sswjax._files import InputError, atomic_output, first_line
+from sswjax.cli.common import Interrupted, command_line, resume_command
+from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
+                                params_from_args)
+from sswjax.data.io import read_pfm, write_pfm
+from sswjax.data.layouts import StereoScene, detect_layout, find_data_root, load_scenes
+from sswjax.evaluation.figures import comparison_figure
+from sswjax.evaluation.methods import make_method, method_summaries, submission_name
+from sswjax.evaluation.runner import (SCORINGS, SceneResult, Scoring, evaluate_scene,
+                                      iter_evaluate_scenes, markdown_table, summary_markdown,
+                                      table1_markdown, write_metrics_csv)
+from sswjax.runtime.buckets import ShapeBuckets
+
+__all__ = ["add_evaluate_command", "run_evaluate"]
+
+
+def _methods_help() -> str:
+    """``--methods`` help from the catalogue: every method name with its one-line summary."""
+    listed = "; ".join(f"{name}: {summary}" for name, summary in method_summaries().items())
+    return f"comma-separated method names (default ssw). {listed}".replace("%", "%%")
+
+
+def add_evaluate_command(commands) -> None:
+    """Add the ``evaluate`` sub-command to ``commands`` (argparse's sub-parsers)."""
+    parser = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
+    parser.add_argument("--data", type=Path, help="data folder: MiddEval3, KITTI 2012/2015, "
+                        "Middlebury 2001/2003/2005/2006 or ETH3D two-view, told by its files "
+                        "(default: $SSWJAX_DATA, then ../shared/data/MiddEval3 beside the project)")
+    parser.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
+    parser.add_argument("--ndisp", type=int,
+                        help="disparities searched in every scene, 0..N-1 (default: calib.txt "
+                             "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2)")
+    parser.add_argument("--scenes", nargs="+", help="only these scenes")
+    parser.add_argument("--methods", default="ssw", help=_methods_help())
+    add_parameter_options(parser, "the base")
+    parser.add_argument("-o", "--output", type=Path,
+                        help="folder for disparities (MiddEval3 layout), results.md, metrics.csv")
+    parser.add_argument("--figure", action="store_true",
+                        help="also write comparison.png (needs matplotlib)")
+    parser.add_argument("--bucket", action="store_true",
+                        help="pad pairs to a few bucketed shapes: fewer compilations (3 for "
+                             "trainingQ), slightly different results at the bottom/right "
+                             "borders; SSW methods then run one pair per JAX device per call, "
+                             "over all devices (a scene's time: its call's time / its pairs)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue an interrupted run: keep the scenes already in -o "
+                             "(disparity and time files) instead of recomputing them")
+    parser.set_defaults(run=run_evaluate)
+
+
+def _write_scene_result(folder: Path, tag: str, result: SceneResult) -> None:
+    """Atomically write one scene's ``disp0<TAG>.pfm`` and ``time<TAG>.txt``.
+
+    The disparity goes first: ``--resume`` needs both files, so an interruption between the two
+    writes costs a recomputation but never pairs a new time with an old disparity map.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    write_pfm(folder / f"disp0{tag}.pfm", result.disparity)
+    with atomic_output(folder / f"time{tag}.txt") as tmp:
+        tmp.write_text(f"{result.seconds:.3f}\n")
+
+
+def _saved_scene_result(folder: Path, tag: str, scene: StereoScene, scoring: Scoring):
+    """A scene's result read back from ``folder`` (metrics recomputed) and a note for the user.
+
+    Returns ``(None, None)`` when the files are absent and ``(None, reason)`` when they cannot
+    be used (the scene is then recomputed).
+    """
+    pfm, time_file = folder / f"disp0{tag}.pfm", folder / f"time{tag}.txt"
+    if not (pfm.is_file() and time_file.is_file()):
+        return None, None
+    try:
+        disparity = read_pfm(pfm)
+        seconds = float(time_file.read_text(encoding="ascii").strip())
+    except (InputError, OSError, UnicodeDecodeError, ValueError) as error:
+        return None, f"saved result unusable ({first_line(error)}), recomputing"
+    expected = scene.left.shape[:2]
+    if disparity.shape != expected:
+        return None, (f"saved disparity has shape {disparity.shape}, the scene {expected}, "
+                      "recomputing")
+    if not (np.isfinite(seconds) and seconds >= 0):
+        return None, f"saved time {seconds} in {time_file.name} is not valid, recomputing"
+    result = evaluate_scene(lambda left, right, ndisp: disparity, scene, scoring=scoring)
+    return result._replace(seconds=seconds), None
+
+
+def _check_scorable(scenes: list[StereoScene], layout) -> None:
+    """Refuse scenes without the files the layout's scoring needs (one line)."""
+    for attribute, file in layout.required:
+        lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
+        if lacking:
+            raise ValueError(f"cannot score scene(s) without {file}: {', '.join(lacking)} "
+                             f"in {scenes[0].path.parent}")
+
+
+def _note_ignored_plan(args: argparse.Namespace, execution: dict) -> None:
+    """Say that the execution options of an old parameter file do not apply to ``evaluate``."""
+    execution = chosen_execution(execution)
+    if execution:
+        listed = ", ".join(f"{name}={value!r}" for name, value in execution.items())
+        print(f"sswjax: note: {listed} in {args.params} is how a call runs, not a parameter: "
+              f"evaluate chooses strips only where memory needs them (sswjax match takes "
+              f"{', '.join(PLAN_OPTIONS[name] for name in execution)})", file=sys.stderr)
+
+
+def _report(results: dict, scenes: list[StereoScene], layout, scoring: Scoring) -> str:
+    """The markdown of the run: the summary, then one table per method."""
+    if layout.scoring == "middeval3":
+        heads = ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)",
+                 summary_markdown(results),
+                 "## Table 1 layout, bad 2.0 (ours) beside the paper's figures",
+                 table1_markdown(results)]
+    else:
+        heads = [f"## Means over {len(scenes)} {layout.name} scenes (no weights; bad-pixel %"
+                 f"{', KITTI D1 %' if scoring.d1 else ''})",
+                 summary_markdown(results, scoring=scoring)]
+    return "\n\n".join(heads + [f"## {name}\n\n{markdown_table(rows, scoring=scoring)}"
+                                for name, rows in results.items()])
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """``sswjax evaluate``; returns the exit status (0)."""
+    if args.resume and args.output is None:
+        raise ValueError("--resume needs -o/--output: the folder of the run to continue")
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if not methods:
+        raise ValueError(f"no method given in --methods {args.methods!r}")
+    params, execution = params_from_args(args)
+    _note_ignored_plan(args, execution)
+    buckets = ShapeBuckets() if args.bucket else None
+    runners = {name: make_method(name, params=params, buckets=buckets) for name in methods}
+    root = find_data_root(data=args.data)
+    layout = detect_layout(root, split=args.split)
+    scoring = SCORINGS[layout.scoring]
+    scenes = load_scenes(root, layout=layout, split=args.split, scenes=args.scenes,
+                         ndisp=args.ndisp)
+    _check_scorable(scenes, layout)
+    if args.output is not None:
+        args.output.mkdir(parents=True, exist_ok=True)
+    results = {}
+    saved, total = 0, len(runners) * len(scenes)
+    try:
+        for name, method in runners.items():
+            tag = submission_name(name)
+            rows = results[name] = [None] * len(scenes)
+            folders = [None if args.output is None else args.output / name / scene.name
+                       for scene in scenes]
+            print(f"{name}:", file=sys.stderr)
+            with tqdm(total=len(scenes), desc="scenes", unit="scene", file=sys.stderr) as bar:
+                for i, scene in enumerate(scenes):
+                    if args.resume:
+                        rows[i], note = _saved_scene_result(folders[i], tag, scene, scoring)
+                        if note:
+                            bar.write(f"{name} {scene.name}: {note}", file=sys.stderr)
+                resumed = sum(row is not None for row in rows)
+                saved += resumed
+                bar.update(resumed)
+                pending = [i for i, row in enumerate(rows) if row is None]
+                for j, result in iter_evaluate_scenes(method, [scenes[i] for i in pending],
+                                                      scoring=scoring):
+                    i = pending[j]
+                    if folders[i] is not None:
+                        _write_scene_result(folders[i], tag, result)
+                        saved += 1
+                    rows[i] = result
+                    bar.update(1)
+            if args.resume:
+                print(f"{name}: resumed {resumed} of {len(scenes)} scenes from "
+                      f"{args.output / name}", file=sys.stderr)
+    except KeyboardInterrupt:
+        if args.output is None:
+            raise Interrupted("interrupted; nothing was saved (with -o DIR finished scenes are "
+                              "kept and --resume continues)") from None
+        raise Interrupted(f"interrupted; {saved} of {total} scene results are saved in "
+                          f"{args.output}; continue with: "
+                          f"{resume_command(command_line(args))}") from None
+    text = _report(results, scenes, layout, scoring)
+    print(text)
+    if args.output is not None:
+        with atomic_output(args.output / "results.md") as tmp:
+            tmp.write_text(text + "\n")
+        write_metrics_csv(args.output / "metrics.csv", results)
+        if args.figure:
+            comparison_figure(args.output / "comparison.png", scenes, results)
+        print(f"wrote {args.output}")
+    return 0
