@@ -153,37 +153,10 @@ def test_bad_arguments(kwargs, message):
         weighted_median_fill(jnp.zeros((4, 5)), jnp.ones((4, 5), bool), **kwargs)
 
 
-def test_registry_entry_and_params():
-    import sswjax
-    from sswjax import registry
-    from sswjax.params import params_from_dict
-
-    entry = registry.FILLS["wmedian"]
-    assert entry.uses_guide and not entry.uses_segments
-    params = params_from_dict({"fill": "wmedian", "fill_weight_radius": 2, "fill_source": "valid",
-                               "fill_eps": 0.01, "fill_quantile": 0.5})
-    _, disparity, valid = _random_case(7)
-    guide = np.random.default_rng(8).random(disparity.shape + (3,)).astype(np.float32)
-    run = jax.jit(lambda d, v, g, p: entry.fn(d, v, labels=None, num_segments=0, params=p,
-                                              guide=g))
-    out = run(jnp.asarray(disparity), jnp.asarray(valid), jnp.asarray(guide), params)
-    direct = weighted_median_fill(jnp.asarray(disparity), jnp.asarray(valid), radius=2,
-                                  guide=jnp.asarray(guide), eps=0.01, source="valid")
-    np.testing.assert_allclose(np.asarray(out), np.asarray(direct), atol=1e-5)  # jit vs eager
-    with pytest.raises(ValueError, match="needs the left image"):
-        entry.fn(jnp.asarray(disparity), jnp.asarray(valid), labels=None, num_segments=0,
-                 params=params)
-    for bad, message in [({"fill_source": "all"}, "fill_source must be one of"),
-                         ({"fill_weight_radius": 0}, "fill_weight_radius must be in"),
-                         ({"fill_quantile": 1.5}, "fill_quantile must be in"),
-                         ({"fill_eps": 0}, "fill_eps must be a finite number > 0")]:
-        with pytest.raises(ValueError, match=message):
-            params_from_dict(bad)
-    assert sswjax.Params().static.fill == "background"  # the paper's fill stays the default
-
-
 @pytest.mark.parametrize("content, message", [
-    ('{"fill_source": "all"}', "parameter fill_source must be one of ('filled', 'valid'), got 'all'"),
+    ('{"fill_source": "all"}', "parameter fill_source must be one of 'filled', 'valid', got 'all'"),
+    ('{"fill": {"kind": "wmedian", "source": "all"}}',
+     "parameter fill.source must be one of 'filled', 'valid', got 'all'"),
 ])
 def test_cli_bad_fill_parameters(small_pair, tmp_path, run_cli, content, message):
     params = tmp_path / "params.json"
@@ -264,28 +237,3 @@ def test_vote_fill_bad_arguments(kwargs, message):
         vote_fill(jnp.zeros((4, 5)), jnp.ones((4, 5), bool), **kwargs)
 
 
-def test_vote_registry_entry():
-    from sswjax import registry
-    from sswjax.params import params_from_dict
-
-    entry = registry.FILLS["vote"]
-    assert entry.uses_guide and not entry.uses_segments
-    params = params_from_dict({"fill": "vote", "fill_weight_radius": 3, "vote_step": 2,
-                               "vote_sigma": 0.1, "vote_tolerance": 1.0, "fill_radius": 2,
-                               "fill_median": "separable", "fill_band_fit": 4})
-    _, disparity, valid = _random_case(9)
-    guide = np.random.default_rng(10).random(disparity.shape + (3,)).astype(np.float32)
-    out = jax.jit(lambda d, v, g, p: entry.fn(d, v, labels=None, num_segments=0, params=p,
-                                              guide=g))(jnp.asarray(disparity), jnp.asarray(valid),
-                                                        jnp.asarray(guide), params)
-    direct = vote_fill(jnp.asarray(disparity), jnp.asarray(valid), guide=jnp.asarray(guide),
-                       median_radius=2, radius=3, step=2, sigma=0.1, tolerance=1.0, band_fit=4)
-    np.testing.assert_allclose(np.asarray(out), np.asarray(direct), atol=1e-6)
-    with pytest.raises(ValueError, match="needs the left image"):
-        entry.fn(jnp.asarray(disparity), jnp.asarray(valid), labels=None, num_segments=0,
-                 params=params)
-    for bad, message in [({"vote_step": 0}, "vote_step must be in"),
-                         ({"vote_sigma": 0}, "vote_sigma must be a finite number > 0"),
-                         ({"vote_tolerance": -1}, "vote_tolerance must be a finite number >= 0")]:
-        with pytest.raises(ValueError, match=message):
-            params_from_dict(bad)
