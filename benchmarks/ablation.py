@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import sswjax
-from sswjax.api import ShapeBuckets
+from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.data.layouts import load_scenes
 from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.evaluation.runner import SCORINGS, _average

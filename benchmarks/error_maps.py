@@ -2,7 +2,7 @@
 
 Per scene (``--scenes SET:NAME``, SET one of trainingQ, KITTI2012, Middlebury2001), the left
 image, the ground truth and, for each method (presets of :data:`sswjax.PRESETS` through
-``sswjax.match`` at the pair's exact shape, peers of :data:`sswjax.registry.PEERS` that are
+``sswjax.match`` at the pair's exact shape, peers of :data:`sswjax.evaluation.methods.PEERS` that are
 installed), its disparity map above its bad 2.0 error map (red = wrong, grey = right, black =
 no ground truth; KITTI's sparse ground truth drawn grown by ``--dilate`` pixels so the dots stay
 visible), each titled with the scene's bad 2.0 over all pixels with ground truth. Writes the
@@ -30,12 +30,12 @@ import numpy as np
 from scipy.ndimage import binary_dilation
 
 import sswjax
-from sswjax.data.files import atomic_output
+from sswjax._files import atomic_output
 from sswjax.data.io import InputError
 from sswjax.data.layouts import load_scenes
 from sswjax.evaluation.figures import comparison_figure
 from sswjax.evaluation.runner import SCORINGS, evaluate_scene
-from sswjax.registry import PEERS
+from sswjax.evaluation.methods import PEERS
 from sswjax.stages.color import rgb_to_gray
 
 from ablation import SETS  # benchmarks/, on the path when run as a script: set -> folder, scoring
@@ -156,8 +156,8 @@ def region_table(loaded, results) -> str:
 def markdown(loaded, results, command: str) -> str:
     """Per scene and method, bad 2.0 over all pixels with ground truth (and nonocc where known)."""
     methods = list(results[0])
-    lines = [f"Bad 2.0 (%) of the panels of the error-map figure: all pixels with ground truth "
-             f"(nonocc in brackets where the scene has occluded pixels).", "",
+    lines = ["Bad 2.0 (%) of the panels of the error-map figure: all pixels with ground truth "
+             "(nonocc in brackets where the scene has occluded pixels).", "",
              "| scene | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
     for (set_name, scene), per_method in zip(loaded, results):
         cells = []

@@ -11,7 +11,7 @@ bad 2.0, "all") of every peer at least as fast. Presets run at each pair's exact
 trainingQ (the timed set of the speed goals) and through 64-pixel shape buckets on the others
 (their pairs differ in ndisp: one compilation per bucket).
 
-Methods: the presets of :data:`sswjax.PRESETS` and the peers of :data:`sswjax.registry.PEERS`
+Methods: the presets of :data:`sswjax.PRESETS` and the peers of :data:`sswjax.evaluation.methods.PEERS`
 that are installed (OpenCV StereoBM, SGBM 3-way, SGBM HH; CNES Pandora); ``--methods`` narrows.
 Writes ``front.md``, ``front.csv`` and ``front.png`` (time per pair against bad 2.0, log time
 axis, one panel per set) into ``-o``, and records ``jax.devices()``.
@@ -32,11 +32,11 @@ import jax
 import numpy as np
 
 import sswjax
-from sswjax.api import ShapeBuckets
+from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.data.layouts import load_scenes
 from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.evaluation.runner import SCORINGS, _average
-from sswjax.registry import PEERS
+from sswjax.evaluation.methods import PEERS
 
 from _report import write_report  # benchmarks/, on the path when run as a script
 from ablation import SETS  # the three sets, their scoring and columns

@@ -22,7 +22,7 @@ import numpy as np
 
 import sswjax
 from sswjax.data.layouts import load_scenes
-from sswjax.registry import PEERS
+from sswjax.evaluation.methods import PEERS
 
 from _report import write_report  # benchmarks/, on the path when run as a script
 from ablation import SETS

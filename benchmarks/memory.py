@@ -22,14 +22,15 @@ CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import sswjax
-from sswjax.data.datasets import find_data_root, load_middeval3
+from sswjax.data.layouts import find_data_root, load_scenes
+from sswjax.runtime.plan import ExecutionPlan
 
 scene_name, scale, chunk, preset, strips = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], int(sys.argv[5])
-scene = load_middeval3(find_data_root(), scenes=[scene_name])[0]
+scene = load_scenes(find_data_root(), scenes=[scene_name])[0]
 left, right = (np.repeat(np.repeat(im, scale, axis=0), scale, axis=1) for im in (scene.left, scene.right))
-params = sswjax.preset(preset).replace(disparity_chunk=chunk, strip_rows=strips)
+plan = ExecutionPlan(strip_rows=strips, disparity_chunk=chunk)
 start = time.perf_counter()
-disparity = sswjax.match(left, right, scene.ndisp * scale, params=params)
+disparity = sswjax.match(left, right, scene.ndisp * scale, params=sswjax.preset(preset), plan=plan)
 seconds = time.perf_counter() - start
 print(json.dumps({"shape": list(disparity.shape), "ndisp": scene.ndisp * scale, "seconds": seconds,
                   "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6}))
@@ -41,7 +42,7 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=("paper",))
     parser.add_argument("--scene", default="Motorcycle")
     parser.add_argument("--strip-rows", type=int, default=0,
-                        help="match in strips of this many rows (Params.strip_rows; 0: whole)")
+                        help="match in strips of this many rows (ExecutionPlan.strip_rows; 0: whole)")
     parser.add_argument("--scales", type=int, nargs="+", default=(1, 4))
     parser.add_argument("--chunks", type=int, nargs="+", default=(0, 4))
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))

@@ -3,9 +3,11 @@
 Each configuration (size, disparities, preset, parameter changes) runs in a fresh process that
 reads a MiddEval3 trainingQ pair (Motorcycle, tiled or cropped to the size, uint8 RGB as
 ``sswjax match`` reads it) and matches it; its peak RSS (``ru_maxrss``) is recorded. The fit
-is non-negative least squares of the peaks on the terms of :func:`sswjax.memory.memory_terms`,
-weighted by 1 / peak (relative errors); the coefficients, with the margin that puts every
-estimate above its measurement, are printed for ``sswjax/memory.py``. Results go to
+is non-negative least squares of the peaks on the terms of
+:func:`sswjax.runtime.memory.memory_terms`, weighted by 1 / peak (relative errors); the
+coefficients, with the margin that puts every estimate above its measurement, are printed for
+``sswjax/runtime/memory.py``. A configuration's changes are old flat parameter names or
+execution-plan fields (``strip_rows``, ``disparity_chunk``). Results go to
 ``benchmarks/results/memory_model.{md,csv}``; ``--measured CSV`` refits earlier measurements.
 
     python benchmarks/memory_model.py [--only-fit --measured benchmarks/results/memory_model.csv]
@@ -22,6 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+import sswjax
+from sswjax.runtime import memory
+from sswjax.runtime.memory import COEFFICIENTS, memory_terms
+from sswjax.runtime.plan import split_settings
+
 sys.path.insert(0, str(Path(__file__).parent))
 from _report import write_report  # noqa: E402
 
@@ -29,15 +36,16 @@ CHILD = r"""
 import json, resource, sys
 import numpy as np
 import sswjax
-from sswjax.data.datasets import find_data_root
 from sswjax.data.io import read_image
+from sswjax.data.layouts import find_data_root
+from sswjax.runtime.plan import split_settings
 
 height, width, ndisp, preset, changes = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], json.loads(sys.argv[5])
 scene = find_data_root() / "trainingQ" / "Motorcycle"
 left, right = (read_image(scene / name) for name in ("im0.png", "im1.png"))
 left, right = (np.resize(im, (height, width, 3)) if im.shape[:2] != (height, width) else im for im in (left, right))
-params = sswjax.preset(preset).replace(**changes)
-sswjax.match(left, right, ndisp, params=params)
+params, plan = split_settings(sswjax.preset(preset), changes)
+sswjax.match(left, right, ndisp, params=params, plan=plan)
 print(json.dumps({"peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}))
 """
 
@@ -84,16 +92,13 @@ def fit(rows):
     """Non-negative least squares of the peaks on the model's terms, relative errors."""
     from scipy.optimize import nnls
 
-    import sswjax
-    from sswjax.memory import COEFFICIENTS, memory_terms
-
     names = list(COEFFICIENTS)
     design, peaks = [], []
     for row in rows:
         if row["height"] * row["width"] < TINY:
             continue
-        params = sswjax.preset(row["preset"]).replace(**row["changes"])
-        terms = memory_terms(row["height"], row["width"], row["ndisp"], params=params)
+        params, plan = split_settings(sswjax.preset(row["preset"]), row["changes"])
+        terms = memory_terms(row["height"], row["width"], row["ndisp"], params=params, plan=plan)
         design.append([terms[n] for n in names])
         peaks.append(row["peak"])
     design, peaks = np.array(design), np.array(peaks, float)
@@ -125,19 +130,17 @@ def main() -> None:
             print(f"{width} x {height} x {ndisp} {preset} {changes}: {peak / 1e9:.2f} GB", flush=True)
             rows.append({"height": height, "width": width, "ndisp": ndisp, "preset": preset,
                          "changes": changes, "peak": peak})
-    import sswjax
-    from sswjax import memory
-
     memory.COEFFICIENTS.update(fit(rows))
     floor = {"none": 0.0, "sgm": 0.0}
     for row in rows:
         if row["height"] * row["width"] < TINY:
-            key = "none" if sswjax.preset(row["preset"]).static.optimizer == "none" else "sgm"
+            key = "none" if sswjax.preset(row["preset"]).optimizer is None else "sgm"
             floor[key] = max(floor[key], row["peak"])
     memory.COMPILE_FLOOR.update(floor)
     memory.MARGIN, memory.SLACK = 1.0, 0
     fitted = np.array([memory.estimate_peak_bytes(
-        r["height"], r["width"], r["ndisp"], params=sswjax.preset(r["preset"]).replace(**r["changes"]))
+        r["height"], r["width"], r["ndisp"],
+        **dict(zip(("params", "plan"), split_settings(sswjax.preset(r["preset"]), r["changes"]))))
         for r in rows], float)
     ratios = np.array([row["peak"] for row in rows]) / fitted
     print("COEFFICIENTS =", {k: float(f"{v:.4g}") for k, v in memory.COEFFICIENTS.items()})

@@ -6,7 +6,7 @@ measured, x = 5, 10, ..., 100. The oracle sorts by the true error (the best any 
 do); a random order gives the overall bad rate at every x. The area under a curve (its mean
 over the 20 fractions) summarises it: lower is better, the oracle's is the floor. Curves are
 averaged over scenes. Every measure of :data:`sswjax.stages.confidence.MEASURES` is scored on
-one run of the graph per scene (``sswjax.pipeline.ssw_cues``), plus ``ratio x lr``.
+one run of the graph per scene (``sswjax.graph.ssw_cues``), plus ``ratio x lr``.
 
 The validity bits are scored too: for each low-confidence threshold, the share of pixels with
 ground truth that carry a bit, and the bad 2.0 of those without one.
@@ -30,9 +30,10 @@ import jax.numpy as jnp
 import numpy as np
 
 import sswjax
-from sswjax import pipeline
-from sswjax.api import ShapeBuckets, _match_maps
-from sswjax.compilation import enable_compilation_cache
+from sswjax.api.match import match_graph
+from sswjax.graph import DEFAULT_CHUNK, ssw_cues
+from sswjax.runtime.buckets import ShapeBuckets
+from sswjax.runtime.compilation import enable_compilation_cache
 from sswjax.data.layouts import load_scenes
 from sswjax.stages.confidence import MEASURES, ConfidenceCues, confidence, validity_mask
 
@@ -57,10 +58,11 @@ class _Maps(NamedTuple):
     lr_failed: jax.Array
 
 
-@functools.partial(jax.jit, static_argnames=("ndisp",))
-def _graph(left, right, params, *, ndisp, valid_ndisp=None):
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def _graph(left, right, params, *, ndisp, valid_ndisp=None, chunk=DEFAULT_CHUNK):
     """``ssw_cues`` flattened into one NamedTuple of maps, so strips and buckets crop each."""
-    disparity, cues = pipeline.ssw_cues(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp)
+    disparity, cues = ssw_cues(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
+                               chunk=chunk)
     return _Maps(disparity, *cues)
 
 
@@ -123,8 +125,8 @@ def run(preset: str, data: str, *, limit: int = 0) -> tuple[dict, dict, float]:
     curves, validity = [], []
     start = time.perf_counter()
     for scene in scenes:
-        maps = _match_maps(scene.left, scene.right, scene.ndisp, min_disp=0, params=params,
-                           buckets=ShapeBuckets(), check_memory=False, graph=_graph)
+        maps = match_graph(scene.left, scene.right, scene.ndisp, graph=_graph, params=params,
+                           buckets=ShapeBuckets(), check_memory=False)
         c, v = scene_curves(maps, scene.ground_truth, rng)
         curves.append(c)
         validity.append(v)

@@ -25,12 +25,14 @@ import jax.numpy as jnp
 import numpy as np
 
 import sswjax
-from sswjax.api import prepare_pair
-from sswjax.data.datasets import find_data_root, load_middeval3
+from sswjax.api.images import prepare_pair
+from sswjax.data.layouts import find_data_root, load_scenes
 from sswjax.evaluation.peers import sgbm_disparity
-from sswjax.pipeline import STAGES, ssw_disparity
+from sswjax.graph import Stage, ssw_disparity
 
 from _report import write_report  # benchmarks/, on the path when run as a script
+
+STAGES = tuple(stage.value for stage in Stage)
 
 
 def _timed(fn, *args):
@@ -53,7 +55,7 @@ def stage_profile(left, right, params, ndisp) -> dict[str, float]:
     """Seconds spent in each stage of one warm ``ssw_disparity`` call, from a profiler trace.
 
     Every executed XLA operation (thunk) is attributed to the stage whose ``jax.named_scope``
-    (``sswjax.pipeline.STAGES``) its ``op_name`` carries; loop containers are skipped so time is
+    (:class:`sswjax.graph.Stage`) its ``op_name`` carries; loop containers are skipped so time is
     not counted twice. Operations may overlap on the two cores, so stages can add up to more
     than the wall time; the profiler also adds some overhead.
     """
@@ -119,7 +121,7 @@ def main() -> None:
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
     params = sswjax.preset(args.preset) if args.preset else params
-    scenes = load_middeval3(find_data_root(data=args.data), scenes=args.scenes)
+    scenes = load_scenes(find_data_root(data=args.data), scenes=args.scenes)
     rows = []
     if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
         from sswjax.evaluation.peers import pandora_disparity

@@ -15,14 +15,15 @@ import argparse
 from pathlib import Path
 
 from sswjax.cli import main as sswjax_main
-from sswjax.data.datasets import find_data_root, load_middeval3
 from sswjax.data.io import read_pfm
+from sswjax.data.layouts import find_data_root, load_scenes
 from sswjax.evaluation.methods import submission_name
 from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.evaluation.runner import THRESHOLDS, SceneResult
-from sswjax.registry import AGGREGATORS, VARIANTS
+from sswjax.config import kinds
+from sswjax.evaluation.methods import VARIANTS
 
-METHODS = (*AGGREGATORS, "sgbm", *VARIANTS)  # every aggregator and ablation of the registry
+METHODS = (*kinds("aggregation"), "sgbm", *VARIANTS)  # every aggregator and ablation
 FIGURE_METHODS = ("ssw", "gf", "mf", "sgbm")
 FIGURE_SCENES = ("Teddy", "ArtL", "Playtable", "Vintage")
 
@@ -31,7 +32,7 @@ def figure_from_outputs(out: Path, data: Path | None) -> Path:
     """Draw the README figure from the PFMs that ``sswjax evaluate`` wrote into ``out``."""
     from sswjax.evaluation.figures import comparison_figure
 
-    scenes = load_middeval3(find_data_root(data=data), scenes=list(FIGURE_SCENES))
+    scenes = load_scenes(find_data_root(data=data), scenes=list(FIGURE_SCENES))
     results = {}
     for method in FIGURE_METHODS:
         rows = []
