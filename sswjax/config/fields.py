@@ -30,7 +30,8 @@ from typing import Any, NamedTuple
 import jax
 import numpy as np
 
-__all__ = ["ConfigError", "Option", "Sigmoid", "Simplex", "Softplus", "Transform", "check_value",
+__all__ = ["ConfigError", "Option", "Sigmoid", "Simplex", "Softplus", "Transform", "as_float",
+           "check_value",
            "default_of", "is_config", "is_set", "nested_fields",
            "option", "option_fields", "stage_config"]
 
@@ -210,6 +211,18 @@ def is_set(config, name: str) -> bool:
     if isinstance(value, jax.core.Tracer):
         return False
     return value != default_of(config, name)
+
+
+def as_float(spec: Option, value):
+    """A Python integer given to a traced option as a float (every other value as it is), so
+    that the pytree's leaves keep one dtype however a value was written.
+
+    >>> as_float(Option(False, float, ""), 2), as_float(Option(True, int, ""), 2)
+    (2.0, 2)
+    """
+    if not spec.static and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
 
 
 def check_value(path: str, spec: Option, value):

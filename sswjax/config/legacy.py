@@ -21,7 +21,7 @@ import re
 from collections.abc import Mapping
 from typing import NamedTuple
 
-from sswjax.config.fields import ConfigError, check_value, default_of, option_fields
+from sswjax.config.fields import ConfigError, as_float, check_value, default_of, option_fields
 from sswjax.config.parts import SLOTS, kinds
 
 __all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names",
@@ -233,7 +233,7 @@ def from_flat(flat: Mapping, *, explicit=None) -> FlatReading:
             if name is None or field in _FIXED.get((slot, kind), ()) \
                     or _skipped(slot, field, chosen, values):
                 continue
-            options[field] = values[name]
+            options[field] = as_float(dict(option_fields(cls))[field], values[name])
             used.add(name)
         if slot == "coarse":
             options.update(_coarse_median(values, used))

@@ -18,7 +18,7 @@ from collections.abc import Iterator, Mapping
 
 from sswjax.config.aggregation import Aggregator, SideWindowAggregation
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
-from sswjax.config.fields import ConfigError, is_config, option_fields, stage_config
+from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
 from sswjax.config.legacy import (EXECUTION_DEFAULTS, from_flat, old_names, to_flat, translate,
                                   unused_error)
@@ -152,13 +152,15 @@ def _slot_value(params: Params, slot: str, value):
 
 
 def _with_options(config, slot: str, options: Mapping):
-    """``config`` with some options changed; unknown names refused."""
-    names = [name for name, _ in option_fields(config)]
-    unknown = sorted(set(options) - set(names))
+    """``config`` with some options changed (a traced option given a Python integer takes it
+    as a float); unknown names refused."""
+    specs = dict(option_fields(config))
+    unknown = sorted(set(options) - set(specs))
     if unknown:
         raise ConfigError(f"{slot}.{unknown[0]}", f"{slot} {config.kind!r} has no option "
-                          f"{unknown[0]!r}; its options: {', '.join(names) or 'none'}")
-    return dataclasses.replace(config, **options)
+                          f"{unknown[0]!r}; its options: {', '.join(specs) or 'none'}")
+    return dataclasses.replace(config, **{name: as_float(specs[name], value)
+                                          for name, value in options.items()})
 
 
 def _set_option(params: Params, path: str, value) -> Params:

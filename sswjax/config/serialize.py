@@ -17,7 +17,7 @@ import warnings
 from collections.abc import Mapping
 
 from sswjax._files import atomic_output
-from sswjax.config.fields import ConfigError, check_value, option_fields
+from sswjax.config.fields import ConfigError
 from sswjax.config.legacy import (DYNAMIC_DEFAULTS, EXECUTION_DEFAULTS, STATIC_DEFAULTS, from_flat,
                                   old_names, translate)
 from sswjax.config.params import Params
@@ -73,7 +73,7 @@ def read_params_dict(data) -> tuple[Params, dict]:
             if value is not None and not isinstance(value, Mapping):
                 raise ConfigError(slot, f"stage {slot} must be null or an object, got {value!r}")
             params = params.replace(**{slot: value})
-    return check_params(_canonical(params)), {}
+    return check_params(params), {}
 
 
 def _read_flat(data: Mapping) -> tuple[Params, dict]:
@@ -94,27 +94,13 @@ def _read_flat(data: Mapping) -> tuple[Params, dict]:
             raise ConfigError(key, f"unknown parameter {key!r}")
     try:
         reading = from_flat(flat)
-        params = check_params(_canonical(Params(**reading.slots)))
+        params = check_params(Params(**reading.slots))
     except ConfigError as error:
         raise translate(error) from None
     if reading.unused:
         warnings.warn("ignored (as before the per-stage parameters): "
                       + "; ".join(reading.unused.values()), stacklevel=4)
     return params, reading.execution
-
-
-def _canonical(params: Params) -> Params:
-    """``params`` with each option in its canonical type (JSON integers of traced options as
-    floats), checked one by one."""
-    changes = {}
-    for slot, config in params.stages():
-        if config is None:
-            continue
-        for name, spec in option_fields(config):
-            value = check_value(f"{slot}.{name}", spec, getattr(config, name))
-            if value is not getattr(config, name):
-                changes[f"{slot}.{name}"] = value
-    return params.replace(**changes) if changes else params
 
 
 def params_from_dict(data) -> Params:
