@@ -295,16 +295,7 @@ def check_memory(height: int, width: int, ndisp: int, *, params: Params | None =
     ...
     sswjax.runtime.memory.MemoryEstimateError: ...
     """
-    params = default_params() if params is None else params
-    plan = ExecutionPlan() if plan is None else plan
-    estimate = estimate_peak_bytes(height, width, ndisp, params=params, plan=plan,
-                                   channels=channels)
-    bound, what = _bound(limit)
-    if bound is None or estimate <= bound:
-        return estimate
-    shape = (height, width, ndisp)
-    strips = _tallest_strips(shape, params, plan, channels, bound)
-    raise _refusal(shape, estimate, bound, what, params, channels, strips)
+    return _assess((height, width, ndisp), params, plan, channels, limit, choose=False)[0]
 
 
 def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | None = None,
@@ -334,17 +325,21 @@ def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | Non
     >>> 0 < fitted.strip_rows < 1988
     True
     """
+    return _assess((height, width, ndisp), params, plan, channels, limit, choose=True)[1]
+
+
+def _assess(shape, params, plan, channels, limit, *, choose: bool) -> tuple[int, ExecutionPlan]:
+    """The estimate of a call and the plan it runs with: ``plan`` when it fits, the tallest
+    strips that do when ``choose`` and the plan has none, else the refusal."""
     params = default_params() if params is None else params
     plan = ExecutionPlan() if plan is None else plan
-    estimate = estimate_peak_bytes(height, width, ndisp, params=params, plan=plan,
-                                   channels=channels)
+    estimate = estimate_peak_bytes(*shape, params=params, plan=plan, channels=channels)
     bound, what = _bound(limit)
     if bound is None or estimate <= bound:
-        return plan
-    shape = (height, width, ndisp)
+        return estimate, plan
     strips = _tallest_strips(shape, params, plan, channels, bound)
-    if strips is not None and not plan.strip_rows:
-        return strips
+    if choose and strips is not None and not plan.strip_rows:
+        return estimate, strips
     raise _refusal(shape, estimate, bound, what, params, channels, strips)
 
 
