@@ -126,7 +126,7 @@ def test_match_unreadable_image(files, run_cli):
         ('{"census_weight": -1}', "parameter census_weight must be a number >= 0, got -1.0"),
         ('{"static": {"census_width": 17}}', "parameter census_width must be an odd integer in [1, 15], got 17"),
         ('{"static": {"census_height": 8}}', "parameter census_height must be an odd integer in [1, 15], got 8"),
-        ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be an integer in [1, 7], got -1"),
+        ('{"static": {"refine_radius": -1}}', "parameter refine_radius must be an integer in [0, 7], got -1"),
         ('{"static": {"fill_radius": 8}}', "parameter fill_radius must be in [0, 5] with fill_median 'square', got 8"),
         ('{"static": {"fill_radius": 16, "fill_median": "separable"}}', "parameter fill_radius must be an integer in [0, 15], got 16"),
         ('{"static": {"radius": 3}}', "unknown static parameter 'radius'"),

@@ -17,6 +17,7 @@ default (full dumps, which list every name, load as before). ``strip_rows``,
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -261,7 +262,8 @@ def _check_values(flat: Mapping) -> None:
         slot, field = _OPTIONS[name]
         spec = next(dict(option_fields(cls))[field] for cls in kinds(slot).values()
                     if field in dict(option_fields(cls)))
-        check_value(name, spec, value)
+        check_value(name, dataclasses.replace(spec, low=0) if name in _OFF_AT_ZERO else spec,
+                    value)
 
 
 def _coarse_median(values: Mapping, used: set) -> dict:
