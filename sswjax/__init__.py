@@ -15,6 +15,7 @@ door) -> ``data`` / ``evaluation`` / ``search`` -> ``cli``. This module only nam
 API.
 """
 
+from sswjax._version import __version__
 from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
 from sswjax.api.match import Matched, match, match_with_confidence
 from sswjax.config import (DEFAULT_PRESET, PRESETS, ConfigError, Params, check_params,
@@ -28,6 +29,7 @@ from sswjax.runtime.plan import ExecutionPlan
 
 __all__ = [
     "Calibration",
+    "__version__",
     "ConfigError",
     "DEFAULT_PRESET",
     "ExecutionPlan",
@@ -51,4 +53,3 @@ __all__ = [
     "ssw_outputs",
     "write_ply",
 ]
-__version__ = "0.1.0"

@@ -4,6 +4,10 @@ Every problem with a user-supplied file (missing, unreadable, corrupt, truncated
 writable) raises :class:`InputError`, a ``ValueError`` with a one-line message naming the file;
 :func:`first_line` is how a one-line message shows an underlying exception. Writers go through
 :func:`atomic_output`: the output either keeps its old content or gets the complete new one.
+A set of outputs written together goes through :func:`atomic_outputs`: every file is written
+to a temporary file beside it, and all of them are moved into place only once all are written,
+so either every output gets its new content or none changes. :func:`same_file` tells whether
+two paths name one file (symbolic and hard links included).
 """
 
 from __future__ import annotations
@@ -11,10 +15,11 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["InputError", "atomic_output", "first_line", "reason"]
+__all__ = ["InputError", "OutputFiles", "atomic_output", "atomic_outputs", "first_line",
+           "output_file", "reason", "same_file"]
 
 
 class InputError(ValueError):
@@ -55,6 +60,139 @@ def reason(error: BaseException | str) -> str:
     return first_line(getattr(error, "strerror", None) or error)
 
 
+def _identity(path: str | os.PathLike) -> tuple[str, tuple[int, int] | None]:
+    """The path with every symbolic link resolved, and ``(st_dev, st_ino)`` of the file it
+    names (None when it does not exist or cannot be examined)."""
+    try:
+        resolved = os.path.realpath(path)
+    except (OSError, ValueError):
+        resolved = os.path.abspath(path)
+    try:
+        status = os.stat(path)
+    except (OSError, ValueError):
+        return resolved, None
+    return resolved, (status.st_dev, status.st_ino)
+
+
+def same_file(first: str | os.PathLike, second: str | os.PathLike) -> bool:
+    """Whether two paths name one file: the same path once symbolic links, ``.`` and ``..``
+    are resolved (whether or not it exists), or the same device and inode (hard links).
+
+    Examples
+    --------
+    >>> same_file("out/../d.pfm", "d.pfm"), same_file("a.pfm", "b.pfm")
+    (True, False)
+    """
+    (first_path, first_inode), (second_path, second_inode) = _identity(first), _identity(second)
+    return first_path == second_path or (first_inode is not None and first_inode == second_inode)
+
+
+def _temporary(path: Path) -> Path:
+    """An empty ``.<name>.<random>.tmp`` beside ``path``: proof that ``path`` can be written."""
+    try:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {reason(exc)}") from exc
+    return Path(name)
+
+
+class OutputFiles(dict):
+    """What :func:`atomic_outputs` yields: each destination ``Path`` -> its temporary ``Path``."""
+
+    def write(self, path: str | os.PathLike, writer: Callable[[Path], object]) -> None:
+        """``writer(temporary)`` for the destination ``path``; an ``OSError`` becomes an
+        :class:`InputError` naming ``path``."""
+        path = Path(path)
+        try:
+            writer(self[path])
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: {reason(exc)}") from exc
+
+
+def _commit(outputs: OutputFiles) -> None:
+    """Move every temporary file onto its destination. If one move fails (or Ctrl-C), the
+    moves before it are undone: a file they created is removed, a file they replaced is put
+    back from the hard link kept of it meanwhile (where the file system has hard links)."""
+    backups: dict[Path, Path] = {}
+    placed: list[Path] = []  # the destinations that did not exist before are removed again
+    path = None
+    try:
+        for path, tmp in outputs.items():
+            os.chmod(tmp, _FILE_MODE)
+        for path, tmp in outputs.items():
+            existed = os.path.lexists(path)
+            if existed and len(outputs) > 1:
+                with contextlib.suppress(OSError, NotImplementedError):  # no hard links here
+                    os.link(path, tmp.with_suffix(".old"), follow_symlinks=False)
+                    backups[path] = tmp.with_suffix(".old")
+            os.replace(tmp, path)
+            if not existed or path in backups:
+                placed.append(path)
+    except BaseException as exc:
+        for done in placed:
+            with contextlib.suppress(OSError):
+                if done in backups:
+                    os.replace(backups.pop(done), done)
+                else:
+                    os.unlink(done)
+        if isinstance(exc, OSError):
+            raise InputError(f"cannot write {path}: {reason(exc)}") from exc
+        raise
+    finally:
+        for backup in backups.values():
+            with contextlib.suppress(OSError):
+                os.unlink(backup)
+
+
+@contextlib.contextmanager
+def atomic_outputs(paths: Iterable[str | os.PathLike]) -> Iterator[OutputFiles]:
+    """Write a set of files all or nothing: a temporary file beside each of ``paths``, all
+    moved onto their destinations once the body has written them.
+
+    The temporary files (``.<name>.<random>.tmp``) are created on entry, so a destination that
+    cannot be written fails before the body runs. If the body raises (Ctrl-C included), no
+    destination changes and every temporary file is removed.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        The destinations, distinct files.
+
+    Yields
+    ------
+    OutputFiles
+        Each destination (as a ``pathlib.Path``) -> its temporary file, which exists (empty)
+        and may be overwritten; ``OutputFiles.write(path, writer)`` runs ``writer(temporary)``.
+
+    Raises
+    ------
+    InputError
+        If two paths name the same file, or a temporary file cannot be created or moved.
+
+    Examples
+    --------
+    >>> with atomic_outputs(["a.txt", "b.txt"]) as files:  # doctest: +SKIP
+    ...     files.write("a.txt", lambda tmp: tmp.write_text("a"))
+    ...     files.write("b.txt", lambda tmp: tmp.write_text("b"))
+    """
+    paths = [Path(path) for path in paths]
+    for i, path in enumerate(paths):
+        for other in paths[:i]:
+            if same_file(path, other):
+                raise InputError(f"outputs {other} and {path} are the same file")
+    outputs = OutputFiles()
+    try:
+        for path in paths:
+            outputs[path] = _temporary(path)
+        yield outputs
+        _commit(outputs)
+    finally:
+        for tmp in outputs.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+
+
 @contextlib.contextmanager
 def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to ``path`` and move it onto ``path`` on success.
@@ -75,7 +213,7 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     Raises
     ------
     InputError
-        If the temporary file cannot be created or moved (e.g. missing directory).
+        If the temporary file cannot be created, written or moved (e.g. missing directory).
 
     Examples
     --------
@@ -83,19 +221,15 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     ...     tmp.write_text("hello")
     """
     path = Path(path)
-    try:
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {reason(exc)}") from exc
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.chmod(tmp, _FILE_MODE)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot write {path}: {reason(exc)}") from exc
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_outputs([path]) as outputs:
+        try:
+            yield outputs[path]
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: {reason(exc)}") from exc
+
+
+def output_file(path: str | os.PathLike, *, atomic: bool = True
+                ) -> contextlib.AbstractContextManager[Path]:
+    """Where a writer writes ``path``: :func:`atomic_output`'s temporary file, or with
+    ``atomic=False`` ``path`` itself (already a temporary file of :func:`atomic_outputs`)."""
+    return atomic_output(path) if atomic else contextlib.nullcontext(Path(path))

@@ -11,7 +11,7 @@ import pytest
 PACKAGE = Path(__file__).parents[1] / "sswjax"
 
 LAYERS = (
-    ("sswjax._checks", "sswjax._files"),
+    ("sswjax._checks", "sswjax._files", "sswjax._version"),
     ("sswjax.stages",),
     ("sswjax.config",),
     ("sswjax.graph",),
@@ -25,7 +25,7 @@ LAYERS = (
 """The layers, lowest first: a module imports only from its own layer and those before it."""
 
 OPTIONAL = ("cv2", "pandora", "pandora_plugin_libsgm", "xarray", "matplotlib", "plyfile", "py7zr",
-            "tifffile", "open3d", "dask", "distributed")
+            "tifffile", "open3d", "dask", "distributed", "zstandard")
 """Optional dependencies: the only imports allowed inside functions (they may be absent)."""
 
 MAX_LINES = 400

@@ -95,9 +95,9 @@ def _drop_privileges_and_run(argv, err_path: Path) -> int:
 
 
 def test_match_unreadable_image(files, run_cli):
-    folder = Path(tempfile.mkdtemp(prefix="sswjax-unreadable-"))  # traversable by nobody
+    folder = Path(tempfile.mkdtemp(prefix="sswjax-unreadable-"))
     try:
-        folder.chmod(0o755)
+        folder.chmod(0o777)  # nobody may write the output there: only the image is unreadable
         locked = folder / "locked.png"
         locked.write_bytes((files / "left.png").read_bytes())
         locked.chmod(0)
@@ -186,10 +186,8 @@ def _break_truncated_gt(scene: Path) -> None:
         (lambda s: (s / "im1.png").unlink(), [], "scene Teddy: missing im1.png in {s}"),
         (lambda s: (s / "im0.png").unlink(), [], "scene Teddy: missing im0.png in {s}"),
         (lambda s: (s / "calib.txt").unlink(), [], "scene Teddy: missing calib.txt in {s}"),
-        (lambda s: (s / "disp0GT.pfm").unlink(), [],
-         "cannot score scene(s) without disp0GT.pfm: Teddy in {s.parent}"),
-        (lambda s: (s / "mask0nocc.png").unlink(), [],
-         "cannot score scene(s) without mask0nocc.png: Teddy in {s.parent}"),
+        (lambda s: (s / "disp0GT.pfm").unlink(), [], "scene Teddy: missing disp0GT.pfm in {s}"),
+        (lambda s: (s / "mask0nocc.png").unlink(), [], "scene Teddy: missing mask0nocc.png in {s}"),
         (_break_truncated_gt, [], "PFM file {s}/disp0GT.pfm is truncated: 86 of 4224 data bytes"),
         (lambda s: (s / "disp0GT.pfm").write_bytes(b"P5\n44 24\n255\n" + bytes(44 * 24)),
          [], "PFM file {s}/disp0GT.pfm has bad magic b'P5', expected b'Pf' or b'PF'"),

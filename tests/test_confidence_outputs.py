@@ -76,6 +76,19 @@ def test_api_rejects_bad_options(pair):
         sswjax.match_with_confidence(*pair, 12, measure="peak")
 
 
+def test_cli_confidence_by_its_extension(small_pair, run_cli, tmp_path):
+    left, right = small_pair.folder / "left.png", small_pair.folder / "right.png"
+    maps = [tmp_path / name for name in ("c.pfm", "c.npy", "c.tif")]
+    for path in maps:
+        code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", tmp_path / "d.pfm",
+                                "--confidence", path])
+        assert code == 0, err
+    confidence = read_pfm(maps[0])
+    assert confidence.shape == (small_pair.height, small_pair.width)
+    np.testing.assert_array_equal(np.load(maps[1]), confidence)
+    np.testing.assert_array_equal(iio.imread(maps[2]), confidence)
+
+
 def test_cli_confidence_validity_and_inf(small_pair, run_cli, tmp_path):
     left, right = small_pair.folder / "left.png", small_pair.folder / "right.png"
     plain, inf = tmp_path / "plain.pfm", tmp_path / "inf.pfm"
@@ -99,7 +112,8 @@ def test_cli_confidence_validity_and_inf(small_pair, run_cli, tmp_path):
 
 
 @pytest.mark.parametrize("case", ["validity-missing-folder", "confidence-missing-folder",
-                                  "validity-is-a-folder", "threshold-out-of-range", "folders"])
+                                  "validity-is-a-folder", "threshold-out-of-range", "folders",
+                                  "confidence-as-png", "validity-as-pfm", "validity-is-left"])
 def test_cli_confidence_bad_input(case, small_pair, run_cli, tmp_path):
     left, right = small_pair.folder / "left.png", small_pair.folder / "right.png"
     out = tmp_path / "d.pfm"
@@ -112,6 +126,12 @@ def test_cli_confidence_bad_input(case, small_pair, run_cli, tmp_path):
         "threshold-out-of-range": (["--validity", tmp_path / "v.png", "--low-confidence", "2"],
                                    "argument --low-confidence: expected a number in [0, 1], got '2'"),
         "folders": (["--invalid-as-inf"], "take one pair, not folders"),
+        "confidence-as-png": (["--confidence", tmp_path / "c.png"],
+                              "unsupported extension '.png'; --confidence writes .pfm, .npy"),
+        "validity-as-pfm": (["--validity", tmp_path / "v.pfm"],
+                            "unsupported extension '.pfm'; --validity writes .png (8-bit)"),
+        "validity-is-left": (["--validity", left],
+                             f"--validity {left} is the same file as the input LEFT {left}"),
     }[case]
     if case == "folders":
         left = right = small_pair.folder

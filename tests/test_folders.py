@@ -60,7 +60,8 @@ def test_pairs_by_name_sorted_by_shape_then_resume(folders, tmp_path, run_cli, f
     assert code == 0, stderr
     # b and c (24x40) run together, then a (30x48): one compilation per shape
     assert [shape for shape, _ in fake_match.calls] == [(24, 40), (24, 40), (30, 48)]
-    assert sorted(p.name for p in out.iterdir()) == ["a.pfm", "b.pfm", "c.pfm"]
+    assert sorted(p.name for p in out.iterdir()) == [".sswjax-run.json", "a.pfm", "b.pfm",
+                                                     "c.pfm"]
     assert read_pfm(out / "a.pfm").shape == (30, 48) and read_pfm(out / "a.pfm")[0, 0] == 48
     assert "wrote 3 disparity maps to" in stdout and "(2 shapes" in stdout and "pairs" in stderr
     write_pfm(out / "c.pfm", np.zeros((2, 2), np.float32))  # damaged: wrong size
@@ -83,10 +84,53 @@ def test_ctrl_c_keeps_finished_maps_and_says_how_to_resume(folders, tmp_path, ru
     fake_match.fail_at = 2
     code, _, stderr = run_cli(["match", left, right, "--ndisp", 8, "-o", out])
     assert code == 130
-    assert [p.name for p in out.iterdir()] == ["b.pfm"]  # finished, nothing half-written
+    # finished, nothing half-written; the record lists the finished map
+    assert sorted(p.name for p in out.iterdir()) == [".sswjax-run.json", "b.pfm"]
     message = stderr.strip().splitlines()[-1]
     assert message.startswith(f"sswjax: interrupted; 1 of 3 disparity maps are saved in {out}")
     assert message.endswith(f"-o {out} --resume")
+
+
+def test_resume_refuses_other_settings_and_keeps_only_its_own_maps(folders, tmp_path, run_cli,
+                                                                 fake_match):
+    left, right = folders
+    out = tmp_path / "out"
+    fake_match.fail_at = 2
+    assert run_cli(["match", left, right, "--ndisp", 8, "-o", out])[0] == 130
+    for extra, changed in [(["--ndisp", 16], "ndisp 16 (was 8)"),
+                           (["--ndisp", 8, "--preset", "fast"], "params.coarse {...} (was null)"),
+                           (["--ndisp", 8, "--set", "optimizer.p2=1.3"],
+                            "params.optimizer.p2 1.3 (was 1.15)"),
+                           (["--ndisp", 8, "--bucket"], "buckets [256, 96] (was null)")]:
+        code, _, stderr = run_cli(["match", left, right, "-o", out, "--resume", *extra])
+        assert code == 2 and stderr.count("\n") == 1, stderr
+        assert f"cannot --resume {out} with other settings than it was made with" in stderr
+        assert changed in stderr, stderr
+    # a map of another run in the folder is not the run's: recomputed
+    write_pfm(out / "c.pfm", np.zeros((24, 40), np.float32))
+    fake_match.fail_at, fake_match.calls[:] = None, []
+    code, stdout, _ = run_cli(["match", left, right, "--ndisp", 8, "-o", out, "--resume"])
+    assert code == 0 and "1 kept from before" in stdout and len(fake_match.calls) == 2
+    assert read_pfm(out / "c.pfm")[0, 0] == 40
+    # a folder with no record cannot be resumed
+    (out / ".sswjax-run.json").unlink()
+    code, _, stderr = run_cli(["match", left, right, "--ndisp", 8, "-o", out, "--resume"])
+    assert code == 2 and "holds no record of the settings it was made with" in stderr
+
+
+def test_many_sizes_are_bucketed_unless_told(tmp_path, run_cli, fake_match, texture):
+    left, right = tmp_path / "left", tmp_path / "right"
+    left.mkdir(), right.mkdir()
+    for i in range(9):  # nine sizes: over the eight of AUTO_BUCKETS
+        iio.imwrite(left / f"{i}.png", texture(i, (24, 40 + i, 3)))
+        iio.imwrite(right / f"{i}.png", texture(i, (24, 40 + i, 3)))
+    code, _, stderr = run_cli(["match", left, right, "--ndisp", 8, "-o", tmp_path / "a"])
+    assert code == 0 and "9 image sizes: padding them to shape buckets" in stderr
+    assert all(buckets == sswjax.ShapeBuckets() for _, buckets in fake_match.calls)
+    fake_match.calls.clear()
+    assert run_cli(["match", left, right, "--ndisp", 8, "-o", tmp_path / "b",
+                    "--no-bucket"])[0] == 0
+    assert all(buckets is None for _, buckets in fake_match.calls)
 
 
 def test_real_matching_equals_the_single_pair_command(folders, tmp_path, run_cli):
@@ -104,7 +148,8 @@ def test_real_matching_equals_the_single_pair_command(folders, tmp_path, run_cli
 
 @pytest.mark.parametrize("case", ["file-and-folder", "folder-and-file", "no-common-names",
                                   "sizes-differ", "stem-clash", "ndisp-too-large", "output-is-file",
-                                  "png-with-folders", "memory"])
+                                  "png-with-folders", "memory", "output-is-left",
+                                  "output-is-right-by-link"])
 def test_bad_folders_one_line_exit_2_nothing_written(folders, tmp_path, run_cli, texture, case):
     left, right = folders
     out = tmp_path / "out"
@@ -121,7 +166,11 @@ def test_bad_folders_one_line_exit_2_nothing_written(folders, tmp_path, run_cli,
         "output-is-file": f"output {out} is a file: with folders -o names a folder",
         "png-with-folders": "--png names one file: with folders only -o OUT_DIR is written",
         "memory": "needs about",
+        "output-is-left": f"-o {left} is the same folder as LEFT_DIR {left}: the maps go to a "
+                          "folder of their own",
+        "output-is-right-by-link": f"-o {out} is the same folder as RIGHT_DIR {right}",
     }[case]
+    before = {p: p.read_bytes() for folder in folders for p in folder.iterdir()}
     if case == "file-and-folder":
         argv[1] = left / "a.png"
     elif case == "folder-and-file":
@@ -142,10 +191,17 @@ def test_bad_folders_one_line_exit_2_nothing_written(folders, tmp_path, run_cli,
         argv += ["--png", tmp_path / "x.png"]
     elif case == "memory":
         argv += ["--max-memory", "0.1"]
+    elif case == "output-is-left":
+        argv[-1] = out = left
+    elif case == "output-is-right-by-link":
+        out.symlink_to(right)
     code, stdout, stderr = run_cli(argv)
     assert code == 2 and stdout == ""
     assert stderr.count("\n") == 1 and stderr.startswith("sswjax: error: ") and expected in stderr
-    assert not out.is_dir() or not any(out.iterdir())
+    if case.startswith("output-is-"):
+        assert {p: p.read_bytes() for folder in folders for p in folder.iterdir()} == before
+    else:
+        assert not out.is_dir() or not any(out.iterdir())
 
 
 def test_image_size_reads_headers(folders, tmp_path, texture):

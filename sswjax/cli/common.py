@@ -3,23 +3,48 @@
 Errors in the user's input print one line ``sswjax: error: ...`` and exit with
 :data:`EXIT_USAGE`; Ctrl-C exits with :data:`EXIT_INTERRUPTED` and the message of
 :class:`Interrupted` (what was kept, and the command that continues). Outputs are checked
-before any work (:func:`check_output_files`) and written atomically.
+before any work (:func:`check_outputs`: no output is an input or another output, each can be
+written where the user asked, in a format its option writes, :data:`OUTPUT_FORMATS`), then
+written all or nothing (:func:`sswjax._files.atomic_outputs`) by the writers of
+:func:`disparity_writers` and its kin: functions of the temporary file to write.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 import textwrap
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
-from sswjax.data.io import write_disparity_png, write_pfm
+from sswjax._files import same_file
+from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_disparity_png, write_float_map
+from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "HelpFormatter", "Interrupted", "Parser", "check_output_files",
-           "command_line", "gigabytes", "resume_command", "write_disparity_outputs"]
+__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "HelpFormatter", "Interrupted",
+           "Parser", "Writer", "check_output_files", "check_outputs", "command_line",
+           "disparity_writers", "gigabytes", "resume_command", "write_disparity_map"]
+
+Writer = Callable[[Path], object]
+"""What writes one output: a function of the (temporary) file to write."""
+
+_FLOAT = ".pfm, .npy, .tif or .tiff (float32)"
+OUTPUT_FORMATS: dict[str, tuple[tuple[str, ...], str]] = {
+    "-o": (FLOAT_MAP_SUFFIXES + (".png",),
+           f"{_FLOAT}, or .png (16-bit, round(disparity * 256), 0 = invalid)"),
+    "--depth": (FLOAT_MAP_SUFFIXES, _FLOAT),
+    "--confidence": (FLOAT_MAP_SUFFIXES, _FLOAT),
+    "--png": ((".png",), ".png (colour-mapped, 8-bit)"),
+    "--validity": ((".png",), ".png (8-bit)"),
+    "--kitti-png": ((".png",), ".png (16-bit, disparity x 256)"),
+    "--ply": ((".ply",), ".ply (binary point cloud)"),
+}
+"""Option of ``sswjax match`` -> the file name endings it writes (any case), and their words
+(the ``formats`` of :func:`check_outputs`)."""
 
 EXIT_USAGE = 2
 """Exit status of bad input (argparse's own convention)."""
@@ -72,26 +97,91 @@ def command_line(args: argparse.Namespace) -> list[str]:
 def check_output_files(*paths: Path | None) -> None:
     """Fail before any work if an output file cannot be created where the user asked.
 
-    Raises ``ValueError`` (one line) for a path that is a folder or whose folder is missing;
-    ``None`` entries (outputs not asked for) are skipped.
+    Raises ``ValueError`` (one line) for a path that is a folder or an existing read-only
+    file, or whose folder is missing, not a folder or not writable; ``None`` entries (outputs
+    not asked for) are skipped.
     """
     for path in paths:
         if path is None:
             continue
         if path.is_dir():
             raise ValueError(f"output {path} is a folder, expected a file name")
-        if not path.parent.is_dir():
-            raise ValueError(f"output folder does not exist: {path.parent}")
+        folder = path.parent
+        if not folder.is_dir():
+            if folder.exists():
+                raise ValueError(f"output folder {folder} is a file, not a folder")
+            raise ValueError(f"output folder does not exist: {folder}")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise ValueError(f"output folder {folder} is not writable")
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"output {path} is a read-only file: not replaced")
 
 
-def write_disparity_outputs(disparity: np.ndarray, pfm: Path | None, png: Path | None,
-                            ndisp: int, *, min_disp: int = 0) -> None:
-    """Atomically write a float32 ``(H, W)`` map as PFM and as a colour PNG (either may be
-    None); the PNG's colours span the searched range ``min_disp .. min_disp + ndisp - 1``."""
-    if pfm is not None:
-        write_pfm(pfm, disparity)
+def check_outputs(outputs: Mapping[str, Path | None],
+                  inputs: Mapping[str, Path | None] | None = None, *,
+                  formats: Mapping[str, tuple[tuple[str, ...], str]] | None = None) -> None:
+    """Fail before any work, with one line naming the options, if an output would replace an
+    input or another output, cannot be written (:func:`check_output_files`), or ends in a
+    format its option does not write (``formats``, e.g. :data:`OUTPUT_FORMATS`).
+
+    Parameters
+    ----------
+    outputs : option -> path, e.g. ``{"-o": Path("d.pfm"), "--png": None}`` (None: not asked)
+    inputs : name -> path of the files read, e.g. ``{"LEFT": ..., "--params": None}``
+    formats : option -> (the endings it writes, their words); options not in it: any ending
+
+    Paths are compared by :func:`sswjax._files.same_file`: resolved, and by inode, so another
+    spelling, a symbolic or a hard link of the same file counts as the same.
+
+    Examples
+    --------
+    >>> check_outputs({"-o": Path("d.pfm"), "--png": Path("./d.pfm")})
+    Traceback (most recent call last):
+    ...
+    ValueError: -o d.pfm and --png d.pfm are the same file: give each output its own path
+    """
+    outputs = [(option, Path(path)) for option, path in outputs.items() if path is not None]
+    inputs = [(name, Path(path)) for name, path in (inputs or {}).items() if path is not None]
+    for option, path in outputs:
+        for name, source in inputs:
+            if same_file(path, source):
+                raise ValueError(f"{option} {path} is the same file as the input {name} "
+                                 f"{source}: choose another output path")
+    for i, (option, path) in enumerate(outputs):
+        for other, earlier in outputs[:i]:
+            if same_file(path, earlier):
+                raise ValueError(f"{other} {earlier} and {option} {path} are the same file: "
+                                 "give each output its own path")
+    for option, path in outputs:
+        check_output_files(path)
+        suffixes, words = (formats or {}).get(option, ((), ""))
+        if suffixes and path.suffix.lower() not in suffixes:
+            found = f"unsupported extension '{path.suffix}'" if path.suffix else "no extension"
+            raise ValueError(f"{option} {path}: {found}; {option} writes {words}")
+
+
+def write_disparity_map(path: Path, disparity: np.ndarray, *, suffix: str) -> None:
+    """Write a float32 ``(H, W)`` disparity map to ``path`` (a temporary file) in the format of
+    ``suffix``: KITTI's 16-bit PNG (``round(d * 256)``, 0 = invalid) for ``.png``, else
+    :func:`sswjax.data.io.write_float_map` (``.pfm``, ``.npy``, ``.tif``, ``.tiff``)."""
+    if suffix.lower() == ".png":
+        write_scaled_disparity(path, disparity, scale=256, atomic=False)
+    else:
+        write_float_map(path, disparity, suffix=suffix, atomic=False)
+
+
+def disparity_writers(disparity: np.ndarray, output: Path | None, png: Path | None, ndisp: int,
+                      *, min_disp: int = 0) -> dict[Path, Writer]:
+    """The writers of a float32 ``(H, W)`` map as ``output`` (by its extension,
+    :func:`write_disparity_map`) and as a colour PNG (either may be None); the PNG's colours
+    span the searched range ``min_disp .. min_disp + ndisp - 1``."""
+    writers: dict[Path, Writer] = {}
+    if output is not None:
+        writers[output] = lambda tmp: write_disparity_map(tmp, disparity, suffix=output.suffix)
     if png is not None:
-        write_disparity_png(png, disparity, vmin=min_disp, vmax=min_disp + ndisp - 1)
+        writers[png] = lambda tmp: write_disparity_png(tmp, disparity, vmin=min_disp,
+                                                       vmax=min_disp + ndisp - 1, atomic=False)
+    return writers
 
 
 def gigabytes(text: str) -> float:

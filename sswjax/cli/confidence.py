@@ -5,8 +5,9 @@
 left-right check and filled, bit 1 = left band ``x - d < 0``, bit 2 = confidence below
 ``--low-confidence``; :mod:`sswjax.stages.confidence`), and ``--invalid-as-inf`` writes the
 ``-o`` map (and ``--png``) with ``inf`` wherever a validity bit is set, the MiddEval3
-convention for pixels without an estimate. Every output is checked before the run and written
-atomically.
+convention for pixels without an estimate. ``--confidence`` is written by its extension
+(``.pfm``, ``.npy``, ``.tif``, ``.tiff``). Every output is checked before the run and written
+with the others, all or nothing (:func:`confidence_writers`).
 """
 
 from __future__ import annotations
@@ -17,11 +18,12 @@ from pathlib import Path
 import imageio.v3 as iio
 import numpy as np
 
-from sswjax._files import atomic_output
-from sswjax.data.io import write_pfm
+from sswjax.cli.common import Writer
+from sswjax.data.io import write_float_map
 from sswjax.stages.confidence import DEFAULT_THRESHOLD
 
-__all__ = ["add_confidence_options", "invalid_as_inf", "wants_confidence", "write_confidence_outputs"]
+__all__ = ["add_confidence_options", "confidence_writers", "invalid_as_inf", "wants_confidence",
+           "write_validity"]
 
 
 def _threshold(text: str) -> float:
@@ -38,8 +40,8 @@ def _threshold(text: str) -> float:
 def add_confidence_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--confidence``, ``--validity``, ``--invalid-as-inf`` and ``--low-confidence``."""
     parser.add_argument("--confidence", type=Path, metavar="CONF.pfm",
-                        help="also write the confidence of each pixel (PFM, float32 in [0, 1], "
-                             "higher = more reliable)")
+                        help="also write the confidence of each pixel (float32 in [0, 1], "
+                             "higher = more reliable) as .pfm, .npy, .tif or .tiff")
     parser.add_argument("--validity", type=Path, metavar="VALID.png",
                         help="also write the validity bits (8-bit PNG, 0 = valid; 1: failed the "
                              "left-right check and filled, 2: left band x - d < 0, 4: low "
@@ -79,8 +81,15 @@ def invalid_as_inf(disparity: np.ndarray, validity: np.ndarray) -> np.ndarray:
     return np.where(validity == 0, disparity, np.float32(np.inf)).astype(np.float32)
 
 
-def write_confidence_outputs(matched, *, confidence: Path | None, validity: Path | None) -> None:
-    """Atomically write the confidence PFM and the validity PNG that were asked for.
+def write_validity(path: Path, validity: np.ndarray) -> None:
+    """Write uint8 ``(H, W)`` validity bits to ``path`` (a temporary file) as an 8-bit gray PNG."""
+    iio.imwrite(path, np.asarray(validity, np.uint8), extension=".png")
+
+
+def confidence_writers(matched, *, confidence: Path | None, validity: Path | None
+                       ) -> dict[Path, Writer]:
+    """The writers of the confidence (by its extension) and the validity PNG asked for, for
+    :func:`sswjax._files.atomic_outputs`.
 
     Parameters
     ----------
@@ -88,8 +97,10 @@ def write_confidence_outputs(matched, *, confidence: Path | None, validity: Path
         confidence float32 (H, W), validity uint8 (H, W).
     confidence, validity : pathlib.Path or None
     """
+    writers: dict[Path, Writer] = {}
     if confidence is not None:
-        write_pfm(confidence, matched.confidence)
+        writers[confidence] = lambda tmp: write_float_map(tmp, matched.confidence,
+                                                          suffix=confidence.suffix, atomic=False)
     if validity is not None:
-        with atomic_output(validity) as tmp:
-            iio.imwrite(tmp, np.asarray(matched.validity, np.uint8), extension=".png")
+        writers[validity] = lambda tmp: write_validity(tmp, matched.validity)
+    return writers

@@ -3,10 +3,10 @@
 The image files of the same name in both folders are pairs; each gives ``OUT_DIR/<stem>.pfm``.
 Everything that can fail on the user's input is checked before the first pair runs, from the
 files' headers: the folders, the names, each pair's sizes, ``ndisp`` against every width, the
-output folder, and the memory estimate of the largest shape (:mod:`sswjax.cli.guard`). Pairs
-run sorted by shape (the bucketed shape with ``--bucket``), so each shape compiles once; each
-map is written atomically as soon as it is done, so Ctrl-C keeps the finished ones and
-``--resume`` skips them.
+output folder (neither LEFT_DIR nor RIGHT_DIR), and the memory estimate of the largest shape
+(:mod:`sswjax.cli.guard`). Pairs run sorted by shape (the bucketed shape with ``--bucket``), so
+each shape compiles once; each map is written atomically as soon as it is done, so Ctrl-C
+keeps the finished ones and ``--resume`` skips them.
 """
 
 from __future__ import annotations
@@ -22,11 +22,13 @@ from typing import NamedTuple
 from PIL import Image
 from tqdm import tqdm
 
-from sswjax._files import InputError
+from sswjax._files import InputError, same_file
+from sswjax._version import __version__
 from sswjax.api.match import match
 from sswjax.cli.common import Interrupted, command_line, resume_command
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import params_from_args, plan_from_args
+from sswjax.cli.record import RunRecord
 from sswjax.data.io import read_image, read_pfm, write_pfm
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape
 
@@ -121,6 +123,24 @@ def _finished(path: Path, size) -> bool:
         return False
 
 
+AUTO_BUCKETS = 8
+"""Distinct image sizes above which a folder run pads its pairs to shape buckets unless told
+``--no-bucket``: each size is a compilation (seconds each), each bucket one."""
+
+
+def _buckets(args: argparse.Namespace, pairs: list[FolderPair]) -> ShapeBuckets | None:
+    """The shape buckets of a folder run: ``--bucket``, ``--no-bucket``, or, by default,
+    buckets when the pairs come in more than :data:`AUTO_BUCKETS` sizes (said on stderr)."""
+    if args.bucket is not None:
+        return ShapeBuckets() if args.bucket else None
+    sizes = {pair.size[:2] for pair in pairs}
+    if len(sizes) <= AUTO_BUCKETS:
+        return None
+    print(f"sswjax: note: {len(sizes)} image sizes: padding them to shape buckets to compile "
+          "fewer graphs (--no-bucket keeps every size)", file=sys.stderr)
+    return ShapeBuckets()
+
+
 def match_folders(args: argparse.Namespace) -> int:
     """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket]``;
     returns the exit status (0)."""
@@ -133,15 +153,23 @@ def match_folders(args: argparse.Namespace) -> int:
     if given:
         raise ValueError(f"{given[0]} names one file: with folders only -o OUT_DIR is written")
     out = args.output
+    for name, folder in (("LEFT_DIR", args.left), ("RIGHT_DIR", args.right)):
+        if same_file(out, folder):
+            raise ValueError(f"-o {out} is the same folder as {name} {folder}: the maps go to "
+                             "a folder of their own")
     if out.exists() and not out.is_dir():
         raise ValueError(f"output {out} is a file: with folders -o names a folder")
     if not out.parent.is_dir():
         raise ValueError(f"output folder does not exist: {out.parent}")
     params, execution = params_from_args(args)
-    buckets = ShapeBuckets() if args.bucket else None
-    plan = plan_from_args(args, execution, buckets=buckets)
     min_disp = getattr(args, "min_disp", 0) or 0
     pairs = folder_pairs(args.left, args.right)
+    buckets = _buckets(args, pairs)
+    plan = plan_from_args(args, execution, buckets=buckets)
+    settings = {"command": "match", "version": __version__, "params": params.to_dict(),
+                "ndisp": args.ndisp, "min_disp": min_disp, "strip_rows": plan.strip_rows,
+                "strip_overlap": plan.strip_overlap,
+                "buckets": None if buckets is None else list(buckets)}
     narrowest = min(pairs, key=lambda p: p.size[1])
     if min_disp == 0 and not 1 <= args.ndisp < narrowest.size[1]:
         raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
@@ -156,8 +184,9 @@ def match_folders(args: argparse.Namespace) -> int:
 
     pairs.sort(key=shape)
     out.mkdir(exist_ok=True)
+    record = (RunRecord.resume if args.resume else RunRecord.start)(out, settings)
     targets = [out / f"{Path(p.name).stem}.pfm" for p in pairs]
-    done = [bool(args.resume) and _finished(t, p.size) for p, t in zip(pairs, targets)]
+    done = [record.done(t.name) and _finished(t, p.size) for p, t in zip(pairs, targets)]
     start, resumed = time.perf_counter(), sum(done)
     try:
         with tqdm(total=len(pairs), initial=resumed, desc="pairs", unit="pair",
@@ -170,6 +199,7 @@ def match_folders(args: argparse.Namespace) -> int:
                 disparity = match(left, right, args.ndisp, min_disp=min_disp, params=params,
                                   plan=plan, check_memory=False)  # guard_memory checked it
                 write_pfm(target, disparity)
+                record.finished(target.name)
                 done[i] = True
                 bar.update(1)
     except KeyboardInterrupt:

@@ -1,9 +1,11 @@
 """``sswjax match`` options for the outputs beyond the map: depth, point cloud, KITTI's PNG.
 
 ``--kitti-png`` writes KITTI's 16-bit PNG (disparity x 256); ``--depth`` the depth
-``baseline * f / (d + doffs)`` as PFM and ``--ply`` the point cloud of the pixels of finite
-positive depth, both from the rig of ``--calib calib.txt`` or of ``--focal F --baseline B
-[--doffs D] [--principal CX CY]`` (:mod:`sswjax.api.geometry`).
+``baseline * f / (d + doffs)`` (by its extension: ``.pfm``, ``.npy``, ``.tif``, ``.tiff``) and
+``--ply`` the point cloud of the pixels of finite positive depth, both from the rig of
+``--calib calib.txt`` or of ``--focal F --baseline B [--doffs D] [--principal CX CY]``
+(:mod:`sswjax.api.geometry`). :func:`geometry_writers` gives their writers, for the match
+command to write with its other outputs, all or nothing.
 """
 
 from __future__ import annotations
@@ -14,12 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from sswjax.api.geometry import Calibration, check_calibration, depth_from_disparity, point_cloud
+from sswjax.cli.common import Writer
 from sswjax.data.calibration import read_calibration
-from sswjax.data.io import write_pfm
+from sswjax.data.io import write_float_map
 from sswjax.data.ply import write_ply
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["add_geometry_options", "calibration", "write_geometry_outputs"]
+__all__ = ["add_geometry_options", "calibration", "geometry_writers"]
 
 
 def add_geometry_options(parser: argparse.ArgumentParser) -> None:
@@ -29,8 +32,9 @@ def add_geometry_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--kitti-png", type=Path, metavar="OUT.png",
                         help="also write KITTI's 16-bit PNG (disparity x 256, 0 = invalid)")
     parser.add_argument("--depth", type=Path, metavar="DEPTH.pfm",
-                        help="also write the depth baseline * f / (d + doffs) as PFM (inf where "
-                             "d + doffs <= 0); needs --calib or --focal and --baseline")
+                        help="also write the depth baseline * f / (d + doffs) as .pfm, .npy, "
+                             ".tif or .tiff (float32, inf where d + doffs <= 0); needs --calib "
+                             "or --focal and --baseline")
     parser.add_argument("--ply", type=Path, metavar="CLOUD.ply",
                         help="also write the pixels of finite positive depth as a binary PLY "
                              "point cloud with the left image's colours")
@@ -74,9 +78,10 @@ def calibration(args: argparse.Namespace) -> Calibration | None:
                                          principal))
 
 
-def write_geometry_outputs(args: argparse.Namespace, disparity: np.ndarray, left: np.ndarray,
-                           calib: Calibration | None) -> None:
-    """Write ``--kitti-png``, ``--depth`` and ``--ply`` (those asked for), atomically.
+def geometry_writers(args: argparse.Namespace, disparity: np.ndarray, left: np.ndarray,
+                     calib: Calibration | None) -> dict[Path, Writer]:
+    """The writers of ``--kitti-png``, ``--depth`` and ``--ply`` (those asked for), for
+    :func:`sswjax._files.atomic_outputs`.
 
     Parameters
     ----------
@@ -84,10 +89,16 @@ def write_geometry_outputs(args: argparse.Namespace, disparity: np.ndarray, left
     left : (H, W) or (H, W, C) image as read, for the point cloud's colours
     calib : Calibration, needed by ``--depth`` and ``--ply`` (:func:`calibration`)
     """
+    writers: dict[Path, Writer] = {}
     if args.kitti_png is not None:
-        write_scaled_disparity(args.kitti_png, disparity, scale=256)
+        writers[args.kitti_png] = lambda tmp: write_scaled_disparity(tmp, disparity, scale=256,
+                                                                     atomic=False)
     if args.depth is not None:
-        write_pfm(args.depth, depth_from_disparity(disparity, focal=calib.focal,
-                                                   baseline=calib.baseline, doffs=calib.doffs))
+        depth = depth_from_disparity(disparity, focal=calib.focal, baseline=calib.baseline,
+                                     doffs=calib.doffs)
+        writers[args.depth] = lambda tmp: write_float_map(tmp, depth, suffix=args.depth.suffix,
+                                                          atomic=False)
     if args.ply is not None:
-        write_ply(args.ply, *point_cloud(disparity, left, calib))
+        cloud = point_cloud(disparity, left, calib)
+        writers[args.ply] = lambda tmp: write_ply(tmp, *cloud, atomic=False)
+    return writers

@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from sswjax.cli.common import check_output_files
+from sswjax.cli.common import check_outputs
 from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
                                 params_from_args)
 from sswjax.config import DEFAULT_PRESET, SLOTS, Params, default_params, kinds, save_params
@@ -109,7 +109,7 @@ def run_params(args: argparse.Namespace) -> int:
             raise ValueError(f"--list prints the catalogue of stages: it takes no {given[0]}")
         print(catalogue())
         return 0
-    check_output_files(args.output)
+    check_outputs({"-o": args.output}, {"--params": args.params})
     params, execution = params_from_args(args)
     execution = chosen_execution(execution)
     if execution:

@@ -12,7 +12,9 @@ Array conventions
 
 Every problem with a user-supplied file (missing, unreadable, corrupt, truncated, not
 writable) raises :class:`InputError`, a ``ValueError`` with a one-line message naming the file.
-All writers are atomic: the output either keeps its old content or gets the complete new one.
+All writers are atomic: the output either keeps its old content or gets the complete new one;
+with ``atomic=False`` they write the path they are given, a temporary file of
+:func:`sswjax._files.atomic_outputs` that writes several outputs all or nothing.
 """
 
 from __future__ import annotations
@@ -26,18 +28,13 @@ import imageio.v3 as iio
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax._files import InputError, atomic_output, first_line, reason
+from sswjax._files import InputError, atomic_output, first_line, output_file, reason
 
-__all__ = [
-    "InputError",
-    "atomic_output",
-    "disparity_to_rgb",
-    "first_line",
-    "read_image",
-    "read_pfm",
-    "write_disparity_png",
-    "write_pfm",
-]
+__all__ = ["FLOAT_MAP_SUFFIXES", "InputError", "atomic_output", "disparity_to_rgb", "first_line",
+           "read_image", "read_pfm", "write_disparity_png", "write_float_map", "write_pfm"]
+
+FLOAT_MAP_SUFFIXES = (".pfm", ".npy", ".tif", ".tiff")
+"""The file name endings :func:`write_float_map` writes: PFM, NumPy's ``.npy``, float32 TIFF."""
 
 
 # ----------------------------------------------------------------------------- images
@@ -234,7 +231,7 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(pixels[::-1], dtype=np.float32)
 
 
-def write_pfm(path: str | os.PathLike, array: np.ndarray) -> None:
+def write_pfm(path: str | os.PathLike, array: np.ndarray, *, atomic: bool = True) -> None:
     """Atomically write a PFM file (little endian, rows bottom-to-top).
 
     Parameters
@@ -244,6 +241,8 @@ def write_pfm(path: str | os.PathLike, array: np.ndarray) -> None:
     array : numpy.ndarray
         Floating ``(H, W)`` (written as ``Pf``) or ``(H, W, 3)`` (written as ``PF``); stored
         as ``float32``. ``inf`` is allowed.
+    atomic : bool
+        False: write ``path`` itself (a temporary file already).
 
     Raises
     ------
@@ -267,24 +266,51 @@ def write_pfm(path: str | os.PathLike, array: np.ndarray) -> None:
     magic = "PF" if array.ndim == 3 else "Pf"
     with np.errstate(over="ignore"):
         body = np.ascontiguousarray(array[::-1], dtype="<f4").tobytes()
-    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+    with output_file(path, atomic=atomic) as tmp, open(tmp, "wb") as f:
         f.write(f"{magic}\n{width} {height}\n-1.0\n".encode("ascii"))
         f.write(body)
+
+
+def write_float_map(path: str | os.PathLike, array: np.ndarray, *, suffix: str | None = None,
+                    atomic: bool = True) -> None:
+    """Atomically write a floating map in the format its name ends with: ``.pfm``
+    (:func:`write_pfm`), ``.npy`` (``np.save`` of the float32 array) or ``.tif`` / ``.tiff``
+    (float32 TIFF); ``suffix`` overrides the name's (for a temporary file).
+
+    ``array`` is floating ``(H, W)`` or ``(H, W, 3)``, stored as float32 (``inf`` allowed);
+    ``atomic=False`` writes ``path`` itself (a temporary file already). Raises ``ValueError``
+    for another ending or a bad shape (``TypeError``: dtype), :class:`InputError` if the file
+    cannot be written.
+
+    Examples
+    --------
+    >>> write_float_map("depth.npy", np.zeros((4, 6), np.float32))  # doctest: +SKIP
+    """
+    suffix = (Path(path).suffix if suffix is None else suffix).lower()
+    if suffix not in FLOAT_MAP_SUFFIXES:
+        raise ValueError(f"cannot write {path}: a map is written as "
+                         f"{', '.join(FLOAT_MAP_SUFFIXES)}, not {suffix or 'without extension'}")
+    if suffix == ".pfm":
+        return write_pfm(path, array, atomic=atomic)
+    array = np.asarray(array)
+    check_rank("array", array, (2, 3))
+    check_floating("array", array)
+    with np.errstate(over="ignore"):
+        array = np.ascontiguousarray(array, dtype=np.float32)
+    with output_file(path, atomic=atomic) as tmp:
+        if suffix == ".npy":
+            with open(tmp, "wb") as f:  # a file object: np.save would add .npy to a name
+                np.save(f, array)
+        else:
+            iio.imwrite(tmp, array, extension=suffix)
 
 
 # ----------------------------------------------------------------------------- display
 
 # Anchor colours (RGB in [0, 1]) at evenly spaced positions: dark blue -> blue -> cyan ->
 # yellow -> red. Lightness rises monotonically up to yellow, so near/far reads at a glance.
-_COLOUR_ANCHORS = np.array(
-    [
-        [0.08, 0.04, 0.40],
-        [0.10, 0.35, 0.85],
-        [0.15, 0.80, 0.85],
-        [0.98, 0.90, 0.20],
-        [0.85, 0.12, 0.08],
-    ]
-)
+_COLOUR_ANCHORS = np.array([[0.08, 0.04, 0.40], [0.10, 0.35, 0.85], [0.15, 0.80, 0.85],
+                            [0.98, 0.90, 0.20], [0.85, 0.12, 0.08]])
 
 
 def disparity_to_rgb(
@@ -337,14 +363,11 @@ def disparity_to_rgb(
     return np.round(rgb * 255).astype(np.uint8)
 
 
-def write_disparity_png(
-    path: str | os.PathLike,
-    disparity: np.ndarray,
-    *,
-    vmin: float | None = None,
-    vmax: float | None = None,
-) -> None:
-    """Atomically write a colour-mapped disparity map as a PNG file.
+def write_disparity_png(path: str | os.PathLike, disparity: np.ndarray, *,
+                        vmin: float | None = None, vmax: float | None = None,
+                        atomic: bool = True) -> None:
+    """Atomically write a colour-mapped disparity map as a PNG file (``atomic=False``: write
+    ``path`` itself, a temporary file already).
 
     Parameters
     ----------
@@ -365,5 +388,5 @@ def write_disparity_png(
     >>> write_disparity_png("disp0.png", np.zeros((4, 6), np.float32))  # doctest: +SKIP
     """
     rgb = disparity_to_rgb(disparity, vmin=vmin, vmax=vmax)
-    with atomic_output(path) as tmp:
+    with output_file(path, atomic=atomic) as tmp:
         iio.imwrite(tmp, rgb, extension=".png")

@@ -11,12 +11,12 @@ import os
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax._files import atomic_output
+from sswjax._files import output_file
 
 __all__ = ["write_ply"]
 
 
-def write_ply(path: str | os.PathLike, xyz, rgb) -> None:
+def write_ply(path: str | os.PathLike, xyz, rgb, *, atomic: bool = True) -> None:
     """Atomically write a binary little-endian PLY point cloud (MeshLab, CloudCompare, Open3D).
 
     One ``vertex`` element with ``float x, y, z`` and ``uchar red, green, blue``.
@@ -26,6 +26,8 @@ def write_ply(path: str | os.PathLike, xyz, rgb) -> None:
     path : str or os.PathLike
     xyz : array_like floating (N, 3)
     rgb : array_like uint8 (N, 3)
+    atomic : bool
+        False: write ``path`` itself (a temporary file already).
 
     Raises
     ------
@@ -55,6 +57,6 @@ def write_ply(path: str | os.PathLike, xyz, rgb) -> None:
                         f"element vertex {len(xyz)}", "property float x", "property float y",
                         "property float z", "property uchar red", "property uchar green",
                         "property uchar blue", "end_header"]) + "\n"
-    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+    with output_file(path, atomic=atomic) as tmp, open(tmp, "wb") as f:
         f.write(header.encode("ascii"))
         f.write(vertices.tobytes())

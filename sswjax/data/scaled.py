@@ -13,7 +13,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax._files import InputError, atomic_output
+from sswjax._files import InputError, output_file
 from sswjax.data.io import read_image
 
 __all__ = ["read_scaled_disparity", "write_scaled_disparity"]
@@ -54,7 +54,8 @@ def read_scaled_disparity(path: str | os.PathLike, *, scale: float) -> np.ndarra
     return disparity
 
 
-def write_scaled_disparity(path: str | os.PathLike, disparity, *, scale: float = 256.0) -> None:
+def write_scaled_disparity(path: str | os.PathLike, disparity, *, scale: float = 256.0,
+                           atomic: bool = True) -> None:
     """Atomically write a 16-bit PNG of ``round(disparity * scale)``, 0 = invalid (KITTI's format).
 
     The inverse of :func:`read_scaled_disparity` up to the rounding (``1 / (2 * scale)`` px).
@@ -68,6 +69,8 @@ def write_scaled_disparity(path: str | os.PathLike, disparity, *, scale: float =
         ``65535 / scale`` (255.996 px for KITTI).
     scale : float > 0
         File value per pixel of disparity (256 for KITTI).
+    atomic : bool
+        False: write ``path`` itself (a temporary file already).
 
     Raises
     ------
@@ -89,5 +92,5 @@ def write_scaled_disparity(path: str | os.PathLike, disparity, *, scale: float =
         scaled = np.round(disparity.astype(np.float64) * scale)
     valid = np.isfinite(scaled) & (disparity > 0) & (scaled <= np.iinfo(np.uint16).max)
     values = np.where(valid, scaled, 0).astype(np.uint16)
-    with atomic_output(path) as tmp:
+    with output_file(path, atomic=atomic) as tmp:
         iio.imwrite(tmp, values, extension=".png")

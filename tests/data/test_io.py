@@ -16,6 +16,7 @@ from sswjax.data.io import (
     read_image,
     read_pfm,
     write_disparity_png,
+    write_float_map,
     write_pfm,
 )
 
@@ -198,6 +199,41 @@ def test_write_pfm_rejects_bad_input(tmp_path):
     with pytest.raises(ValueError, match="array"):
         write_pfm(tmp_path / "a.pfm", np.zeros((2, 2, 2), np.float32))
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("suffix", [".pfm", ".npy", ".tif", ".tiff", ".NPY"])
+def test_float_map_by_extension_round_trip(tmp_path, suffix):
+    array = np.random.default_rng(1).uniform(-5, 200, (5, 7)).astype(np.float32)
+    array[0, 0], array[1, 1] = np.inf, np.nan
+    path = tmp_path / f"m{suffix}"
+    write_float_map(path, array)
+    back = {".pfm": read_pfm, ".npy": np.load}.get(suffix.lower(), iio.imread)(path)
+    assert back.dtype == np.float32
+    np.testing.assert_array_equal(back, array)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+
+
+def test_float_map_refuses_other_extensions(tmp_path):
+    for name in ("m.png", "m"):
+        with pytest.raises(ValueError, match=f"cannot write .*{name}: a map is written as .pfm, "
+                                             ".npy, .tif, .tiff, not"):
+            write_float_map(tmp_path / name, np.zeros((2, 2), np.float32))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_writers_write_a_given_temporary_file_with_atomic_false(tmp_path):
+    """``atomic=False``: the file named is written itself, whatever its name ends with (the
+    format comes from ``suffix``), and nothing else appears."""
+    array = np.arange(6, dtype=np.float32).reshape(2, 3)
+    write_pfm(tmp_path / "a.tmp", array, atomic=False)
+    write_float_map(tmp_path / "b.tmp", array, suffix=".npy", atomic=False)
+    write_float_map(tmp_path / "c.tmp", array, suffix=".tif", atomic=False)
+    write_disparity_png(tmp_path / "d.tmp", array, atomic=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.tmp", "b.tmp", "c.tmp", "d.tmp"]
+    np.testing.assert_array_equal(read_pfm(tmp_path / "a.tmp"), array)
+    np.testing.assert_array_equal(np.load(tmp_path / "b.tmp"), array)
+    np.testing.assert_array_equal(iio.imread(tmp_path / "c.tmp", extension=".tif"), array)
+    assert iio.imread(tmp_path / "d.tmp", extension=".png").shape == (2, 3, 3)
 
 
 # ----------------------------------------------------------------------------- atomicity
