@@ -5,6 +5,10 @@ Middlebury, ETH3D) sets the metrics and their summary (:data:`sswjax.evaluation.
 MiddEval3's weighted averages and Table 1, elsewhere means over scenes with bad 3.0 (and D1
 for KITTI). ``--ndisp`` replaces every scene's disparity count.
 
+Every scene is loaded and checked before any is matched (:mod:`sswjax.cli.scenes`): when some
+cannot be scored the run refuses with one line naming each and why, unless ``--skip-bad``
+scores the others (MiddEval3's weights then renormalised over them) and reports the skipped.
+
 With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
 Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
 disparities are read back and their metrics recomputed). With ``--bucket`` the SSW methods
@@ -22,11 +26,14 @@ import numpy as np
 from tqdm import tqdm
 
 from sswjax._files import InputError, atomic_output, first_line
+from sswjax._version import __version__
 from sswjax.cli.common import Interrupted, command_line, resume_command
 from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
                                 params_from_args)
+from sswjax.cli.record import RunRecord
+from sswjax.cli.scenes import Problems, checked_scenes, ndisp_line, skipped_markdown
 from sswjax.data.io import read_pfm, write_pfm
-from sswjax.data.layouts import StereoScene, detect_layout, find_data_root, load_scenes
+from sswjax.data.layouts import StereoScene, detect_layout, find_data_root
 from sswjax.evaluation.figures import comparison_figure
 from sswjax.evaluation.methods import make_method, method_summaries, submission_name
 from sswjax.evaluation.runner import (SCORINGS, SceneResult, Scoring, evaluate_scene,
@@ -65,6 +72,11 @@ def add_evaluate_command(commands) -> None:
                              "trainingQ), slightly different results at the bottom/right "
                              "borders; SSW methods then run one pair per JAX device per call, "
                              "over all devices (a scene's time: its call's time / its pairs)")
+    parser.add_argument("--skip-bad", action="store_true",
+                        help="score the scenes that can be scored and list the others with why "
+                             "(on stderr and in results.md); by default a run with any scene "
+                             "that cannot be scored (broken or missing file, no known ground "
+                             "truth) is refused, naming them all")
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the scenes already in -o "
                              "(disparity and time files) instead of recomputing them")
@@ -107,15 +119,6 @@ def _saved_scene_result(folder: Path, tag: str, scene: StereoScene, scoring: Sco
     return result._replace(seconds=seconds), None
 
 
-def _check_scorable(scenes: list[StereoScene], layout) -> None:
-    """Refuse scenes without the files the layout's scoring needs (one line)."""
-    for attribute, file in layout.required:
-        lacking = [scene.name for scene in scenes if getattr(scene, attribute) is None]
-        if lacking:
-            raise ValueError(f"cannot score scene(s) without {file}: {', '.join(lacking)} "
-                             f"in {scenes[0].path.parent}")
-
-
 def _note_ignored_plan(args: argparse.Namespace, execution: dict) -> None:
     """Say that the execution options of an old parameter file do not apply to ``evaluate``."""
     execution = chosen_execution(execution)
@@ -126,17 +129,26 @@ def _note_ignored_plan(args: argparse.Namespace, execution: dict) -> None:
               f"{', '.join(PLAN_OPTIONS[name] for name in execution)})", file=sys.stderr)
 
 
-def _report(results: dict, scenes: list[StereoScene], layout, scoring: Scoring) -> str:
-    """The markdown of the run: the summary, then one table per method."""
+def _report(results: dict, scenes: list[StereoScene], layout, scoring: Scoring, *,
+            root: Path, problems: Problems, ndisp: int | None) -> str:
+    """The markdown of the run: the summary, the skipped scenes, then one table per method."""
+    scored = f"{len(scenes)} scored scene{'s' * (len(scenes) > 1)}, {len(problems)} skipped"
     if layout.scoring == "middeval3":
-        heads = ["## Weighted averages (MiddEval3 weights, bad-pixel % at Q resolution)",
+        weights = f"MiddEval3 weights renormalised over the {scored}" if problems else \
+            "MiddEval3 weights"
+        table1 = f" (averages over the {scored}, weights renormalised)" if problems else ""
+        heads = [f"## Weighted averages ({weights}, bad-pixel % at Q resolution)",
                  summary_markdown(results),
-                 "## Table 1 layout, bad 2.0 (ours) beside the paper's figures",
+                 f"## Table 1 layout, bad 2.0 (ours) beside the paper's figures{table1}",
                  table1_markdown(results)]
     else:
-        heads = [f"## Means over {len(scenes)} {layout.name} scenes (no weights; bad-pixel %"
-                 f"{', KITTI D1 %' if scoring.d1 else ''})",
+        skipped = f", {len(problems)} skipped" if problems else ""
+        heads = [f"## Means over {len(scenes)} {layout.name} scenes (no weights{skipped}; "
+                 f"bad-pixel %{', KITTI D1 %' if scoring.d1 else ''})",
                  summary_markdown(results, scoring=scoring)]
+    heads.insert(2, ndisp_line(layout, ndisp))
+    if problems:
+        heads.insert(3, skipped_markdown(problems, root))
     return "\n\n".join(heads + [f"## {name}\n\n{markdown_table(rows, scoring=scoring)}"
                                 for name, rows in results.items()])
 
@@ -155,11 +167,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
     root = find_data_root(data=args.data)
     layout = detect_layout(root, split=args.split)
     scoring = SCORINGS[layout.scoring]
-    scenes = load_scenes(root, layout=layout, split=args.split, scenes=args.scenes,
-                         ndisp=args.ndisp)
-    _check_scorable(scenes, layout)
+    scenes, problems = checked_scenes(root, layout, args)
+    record = None
     if args.output is not None:
-        args.output.mkdir(parents=True, exist_ok=True)
+        settings = {"command": "evaluate", "version": __version__, "params": params.to_dict(),
+                    "data": str(Path(root).resolve()), "split": args.split, "ndisp": args.ndisp,
+                    "bucket": bool(args.bucket)}
+        record = (RunRecord.resume if args.resume else RunRecord.start)(args.output, settings)
     results = {}
     saved, total = 0, len(runners) * len(scenes)
     try:
@@ -171,7 +185,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
             print(f"{name}:", file=sys.stderr)
             with tqdm(total=len(scenes), desc="scenes", unit="scene", file=sys.stderr) as bar:
                 for i, scene in enumerate(scenes):
-                    if args.resume:
+                    if args.resume and record.done(f"{name}/{scene.name}"):
                         rows[i], note = _saved_scene_result(folders[i], tag, scene, scoring)
                         if note:
                             bar.write(f"{name} {scene.name}: {note}", file=sys.stderr)
@@ -184,6 +198,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                     i = pending[j]
                     if folders[i] is not None:
                         _write_scene_result(folders[i], tag, result)
+                        record.finished(f"{name}/{scenes[i].name}")
                         saved += 1
                     rows[i] = result
                     bar.update(1)
@@ -197,7 +212,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise Interrupted(f"interrupted; {saved} of {total} scene results are saved in "
                           f"{args.output}; continue with: "
                           f"{resume_command(command_line(args))}") from None
-    text = _report(results, scenes, layout, scoring)
+    text = _report(results, scenes, layout, scoring, root=root, problems=problems,
+                   ndisp=args.ndisp)
     print(text)
     if args.output is not None:
         with atomic_output(args.output / "results.md") as tmp:

@@ -21,6 +21,8 @@ Rules
   more than 10 % are invalid).
 * Percentages are in ``[0, 100]``; errors in pixels. A region with no pixels gives ``nan``
   everywhere, as do ``avgerr``/``rms`` when no prediction is valid.
+* Averages over scenes (:func:`weighted_average`, :func:`scene_mean`) refuse a value that is
+  not finite, naming its scene: a ``nan`` is never averaged.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from sswjax._checks import (
 )
 
 __all__ = ["D1_FRACTION", "D1_PIXELS", "MIDDEVAL3_TRAINING_WEIGHTS", "evaluate_disparity",
-           "weighted_average"]
+           "scene_mean", "weighted_average"]
 
 #: KITTI's D1 outlier: an error above this many pixels *and* above :data:`D1_FRACTION` of the
 #: true disparity (the devkit's ``tau = [3, 0.05]``).
@@ -159,15 +161,29 @@ def evaluate_disparity(
     }
 
 
+def _check_finite(values: Mapping[str, float]) -> None:
+    """Refuse an average over ``values`` when a scene's value is not a finite number."""
+    if not values:
+        raise ValueError("values must name at least one scene")
+    for scene, value in values.items():
+        if not math.isfinite(float(value)):
+            raise ValueError(f"scene {scene} has no score to average ({float(value)}): a scene "
+                             "without a known ground-truth pixel in the region cannot be "
+                             "scored; leave it out")
+
+
 def weighted_average(
     values: Mapping[str, float], *, weights: Mapping[str, float] = MIDDEVAL3_TRAINING_WEIGHTS
 ) -> float:
     """Weighted average of per-scene values over the scenes present.
 
+    The weights are renormalised over the scenes in ``values``: leaving a scene out divides by
+    the sum of the others' weights.
+
     Parameters
     ----------
     values : Mapping[str, float]
-        Scene name -> value (e.g. bad2.0 percentage).
+        Scene name -> value (e.g. bad2.0 percentage), each finite.
     weights : Mapping[str, float]
         Scene name -> weight; defaults to the MiddEval3 training weights.
 
@@ -179,15 +195,15 @@ def weighted_average(
     Raises
     ------
     ValueError
-        If ``values`` is empty or names a scene without a weight.
+        If ``values`` is empty, names a scene without a weight, or holds a value that is not
+        finite (``nan``: a scene with no known ground truth; the message names it).
 
     Examples
     --------
     >>> round(weighted_average({"Teddy": 10.0, "Vintage": 40.0}), 6)
     20.0
     """
-    if not values:
-        raise ValueError("values must name at least one scene")
+    _check_finite(values)
     unknown = sorted(set(values) - set(weights))
     if unknown:
         raise ValueError(f"values has scenes without a weight: {', '.join(unknown)}")
@@ -195,3 +211,20 @@ def weighted_average(
     if total <= 0:
         raise ValueError(f"weights of the scenes in values must sum to > 0, got {total}")
     return sum(weights[s] * float(v) for s, v in values.items()) / total
+
+
+def scene_mean(values: Mapping[str, float]) -> float:
+    """Plain mean of per-scene values (every scene alike), each finite.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is empty or a value is not finite (the message names its scene).
+
+    Examples
+    --------
+    >>> scene_mean({"000000": 10.0, "000001": 40.0})
+    25.0
+    """
+    _check_finite(values)
+    return float(np.mean([float(v) for v in values.values()]))

@@ -7,7 +7,9 @@ scenes together (e.g. grouped by shape and sharded over devices), and its per-sc
 then its share of a step (see :meth:`BatchedMethod.match_many`). Metrics are those of
 :mod:`sswjax.evaluation.metrics` (percentages for bad-t, D1 and invalid, pixels for
 avgerr/rms/a90); which ones, and how they are averaged, is a :class:`Scoring` (:data:`SCORINGS`,
-by the ``scoring`` of a data layout). Every function defaults to MiddEval3's.
+by the ``scoring`` of a data layout). Every function defaults to MiddEval3's. A scene without
+a known ground-truth pixel cannot be scored (:func:`evaluate_scene` refuses it), and no average
+takes a ``nan``: over the scenes given, MiddEval3's weights are renormalised.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.metrics import (
     MIDDEVAL3_TRAINING_WEIGHTS,
     evaluate_disparity,
+    scene_mean,
     weighted_average,
 )
 
@@ -127,8 +130,12 @@ class SceneResult(NamedTuple):
 
 
 def _check_ground_truth(scene: StereoScene) -> None:
+    """Refuse a scene that cannot be scored: no ground truth, or not one known pixel in it."""
     if scene.ground_truth is None:
         raise ValueError(f"scene {scene.name} has no ground truth (disp0GT.pfm)")
+    if not np.isfinite(scene.ground_truth).any():
+        raise ValueError(f"scene {scene.name} has no known ground-truth disparity: it cannot "
+                         "be scored")
 
 
 def _scored(scene: StereoScene, disparity, seconds: float, scoring: Scoring) -> SceneResult:
@@ -212,7 +219,7 @@ def evaluate_scenes(
 def _average(values: Mapping[str, float], scoring: Scoring) -> float:
     if scoring.average == "weighted":
         return weighted_average(values, weights=scoring.weights)
-    return float(np.mean([float(v) for v in values.values()]))
+    return scene_mean(values)
 
 
 def summary(

@@ -8,7 +8,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sswjax.data.io import InputError
+from sswjax.data.io import InputError, write_pfm
 from sswjax.data.layouts import (
     LAYOUTS,
     Layout,
@@ -233,6 +233,57 @@ def test_eth3d_two_view_layout(tmp_path, write_eth3d):
         load_scenes(root, scenes=["delivery_area_1l"])
     assert "ETH3D (two_view_training/<scene>/{im0.png,im1.png,calib.txt}" in \
         str(pytest.raises(InputError, detect_layout, tmp_path).value)
+
+
+def test_eth3d_ndisp_not_below_the_width_is_no_search_range(tmp_path, write_eth3d):
+    """ETH3D writes the width as ndisp: the ground-truth rule then sizes the range."""
+    root = write_eth3d(tmp_path, ndisps=(40, 39))  # 12x40 scenes of disparities 3 and 5
+    images, truth = root / "two_view_training", root / "two_view_training_gt"
+    assert [s.ndisp for s in load_scenes(root)] == [8, 39]  # 40 = the width: 3 + 2 -> 8; 39 kept
+    gt = np.full(SHAPE, 3.0, np.float32)
+    gt[0, -1] = 37.5  # the rule gives 40, the width: at most 39
+    write_pfm(truth / "delivery_area_1l" / "disp0GT.pfm", gt)
+    assert load_scenes(root, scenes=["delivery_area_1l"])[0].ndisp == 39
+    assert load_scenes(root, scenes=["delivery_area_1l"], ndisp=12)[0].ndisp == 12
+    (truth / "delivery_area_1l" / "disp0GT.pfm").unlink()
+    with pytest.raises(InputError, match=r"scene delivery_area_1l: ndisp=40 in .*calib.txt is not "
+                       r"below the image width 40 \(no search range\) and there is no ground "
+                       r"truth in .* give sswjax evaluate --ndisp N"):
+        load_scenes(root, scenes=["delivery_area_1l"])
+    write_pfm(truth / "electro_1l" / "disp0GT.pfm", np.full(SHAPE, np.inf, np.float32))
+    (images / "electro_1l" / "calib.txt").write_text("ndisp=40\n")
+    with pytest.raises(InputError, match="scene electro_1l: disp0GT.pfm: ground truth has no "
+                       "known disparity to size the search range"):
+        load_scenes(root, scenes=["electro_1l"])
+    assert "ETH3D writes the width there" in LAYOUTS["ETH3D"].ndisp_rule
+
+
+def test_rule_at_most_the_width_minus_one_in_every_layout(tmp_path):
+    root = write_kitti(tmp_path, shifts=(3, 38))  # 38 + 2 -> 40, the width
+    assert [s.ndisp for s in load_scenes(root)] == [8, 39]
+    root = write_middlebury(tmp_path, "Middlebury2001", ("venus",), (31,), width=32)
+    assert load_scenes(root)[0].ndisp == 31  # 31 + 2 -> 40, at most 32 - 1
+
+
+def test_layout_problem_says_why_a_loaded_scene_cannot_be_scored(tmp_path, write_eth3d):
+    eth3d, root = LAYOUTS["ETH3D"], write_eth3d(tmp_path)
+    scene = load_scenes(root, scenes=["delivery_area_1l"])[0]  # ndisp 32
+    truth = root / "two_view_training_gt" / "delivery_area_1l"
+    assert eth3d.problem(scene) is None
+    assert eth3d.problem(scene._replace(mask=None)) == f"missing mask0nocc.png in {truth}"
+    assert eth3d.problem(scene._replace(ground_truth=None)) == f"missing disp0GT.pfm in {truth}"
+    assert eth3d.problem(scene._replace(ndisp=40)) == "ndisp 40 is not below the image width 40"
+    unknown = scene._replace(ground_truth=np.full(SHAPE, np.inf, np.float32))
+    assert eth3d.problem(unknown) == "disp0GT.pfm has no known disparity"
+    assert eth3d.problem(scene._replace(mask=np.zeros(SHAPE, np.uint8))) == (
+        "mask0nocc.png marks no pixel of known disparity non-occluded (255)")
+    root = write_kitti(tmp_path)
+    kitti = load_scenes(root, scenes=["000000"], ndisp=8)[0]
+    assert LAYOUTS["KITTI2012"].problem(kitti._replace(ground_truth=None)) == (
+        f"missing 000000_10.png in {root / 'training' / 'disp_noc'}")
+    middeval3 = LAYOUTS["MiddEval3"]
+    assert middeval3.problem(kitti._replace(ground_truth=None)) == (
+        f"missing disp0GT.pfm in {kitti.path}")
 
 
 def test_registry_classes_scoring_and_required_files():

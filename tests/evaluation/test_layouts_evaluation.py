@@ -141,6 +141,11 @@ def test_evaluate_kitti_folder_end_to_end_with_resume(kitti, tmp_path, oracle, c
     assert oracle == [("ssw", 8)]  # only the scene without a saved result ran again
     assert "D1 all" in (out / "results.md").read_text()  # resumed scenes are scored as KITTI
     assert all(float(r["D1"]) == 0 for r in _csv(out / "metrics.csv"))
+    # the run's record refuses a resume with other settings, naming them
+    capsys.readouterr()
+    assert main(argv + ["--resume", "--ndisp", "16"]) == 2
+    assert "with other settings than it was made with: ndisp 16 (was null)" in \
+        capsys.readouterr().err
 
 
 def test_evaluate_middlebury2001_scenes_and_ndisp(middlebury2001, tmp_path, oracle, capsys):
@@ -192,4 +197,7 @@ def test_evaluate_eth3d_folder(tmp_path, oracle, capsys, write_eth3d):
     assert all(float(r["bad1.0"]) == 0 and float(r["bad0.5"]) == 100 for r in rows)
     (root / "two_view_training_gt" / "electro_1l" / "mask0nocc.png").unlink()
     assert main(["evaluate", "--data", str(root)]) == 2
-    assert "cannot score scene(s) without mask0nocc.png: electro_1l" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    truth = root / "two_view_training_gt" / "electro_1l"
+    assert f"1 of 2 scenes cannot be scored: scene electro_1l: missing mask0nocc.png in {truth}" in err
+    assert err.count("\n") == 1 and "--skip-bad scores the other 1" in err

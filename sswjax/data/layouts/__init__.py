@@ -10,13 +10,14 @@ Every layout is one :class:`Layout` object in :data:`LAYOUTS` and loads into the
 ``kitti``       KITTI 2012 / 2015: one folder per view
 ``middlebury``  Middlebury 2001, 2003, 2005, 2006: one folder per scene, scaled integer GT
 ``eth3d``       ETH3D two-view: image folders beside ground-truth folders
-``registry``    :data:`LAYOUTS`, :func:`detect_layout`, :func:`load_scenes`
+``registry``    :data:`LAYOUTS`, :func:`detect_layout`, :func:`load_scenes`,
+                :func:`load_scenes_checked`
 ==============  ================================================================================
 """
 
 from sswjax.data.layouts.base import Layout, StereoScene, ndisp_from_ground_truth
 from sswjax.data.layouts.middeval3 import find_data_root
-from sswjax.data.layouts.registry import LAYOUTS, detect_layout, load_scenes
+from sswjax.data.layouts.registry import LAYOUTS, detect_layout, load_scenes, load_scenes_checked
 
 __all__ = [
     "LAYOUTS",
@@ -25,5 +26,6 @@ __all__ = [
     "detect_layout",
     "find_data_root",
     "load_scenes",
+    "load_scenes_checked",
     "ndisp_from_ground_truth",
 ]

@@ -9,11 +9,14 @@ Array conventions (every layout loads into the same :class:`StereoScene`)
   layouts without one (scored on region "all" only).
 * ``ndisp``: the disparity count searched. A layout reads it from its calibration when it has
   one; otherwise the protocol is the smallest multiple of 8 that is >= max(ground truth) + 2
-  (:func:`ndisp_from_ground_truth`): the ground truth only sizes the search range, as in our
-  published figures for the peers. An explicit ``ndisp`` replaces it for every scene.
+  (:func:`ndisp_from_ground_truth`), at most the image width - 1 (the widest range a pair
+  allows): the ground truth only sizes the search range, as in our published figures for the
+  peers. Each layout states its rule in :attr:`Layout.ndisp_rule`. An explicit ``ndisp``
+  replaces it for every scene.
 
-A layout lists a folder's scenes (:meth:`Layout.sources`) and loads one
-(:meth:`Layout.load`); the helpers below hold the checks and messages they share.
+A layout lists a folder's scenes (:meth:`Layout.sources`), loads one (:meth:`Layout.load`) and
+says why a loaded scene cannot be scored (:meth:`Layout.problem`); the helpers below hold the
+checks and messages they share.
 """
 
 from __future__ import annotations
@@ -74,6 +77,8 @@ class Layout(abc.ABC):
         Known scene names (lower case), to tell apart layouts with the same file names.
     supersedes : tuple of str
         Names of layouts that also match this one's folders but are not meant when it matches.
+    ndisp_rule : str
+        Where a scene's disparity count comes from, in one line for reports.
     """
 
     name: str
@@ -81,6 +86,8 @@ class Layout(abc.ABC):
     has_masks: bool = True
     known_scenes: tuple[str, ...] = ()
     supersedes: tuple[str, ...] = ()
+    ndisp_rule: str = ("the smallest multiple of 8 >= the largest known disparity + 2, at most "
+                       "the image width - 1")
 
     @property
     @abc.abstractmethod
@@ -115,6 +122,38 @@ class Layout(abc.ABC):
         :class:`~sswjax._files.InputError` if a file is missing, broken or of the wrong shape.
         """
 
+    def scoring_file(self, scene: StereoScene, attribute: str) -> Path:
+        """The file of ``scene`` that :attr:`required` names for ``attribute`` (for messages);
+        by default in the scene's folder."""
+        return scene.path / dict(self.required)[attribute]
+
+    def problem(self, scene: StereoScene) -> str | None:
+        """Why ``scene`` (loaded by :meth:`load`) cannot be scored, in a few words; ``None`` if
+        it can.
+
+        A scene cannot be scored without the files of :attr:`required`, without a pixel of
+        known disparity (its metrics would be ``nan``), without a known pixel marked
+        non-occluded (255) in its mask when it has one, or when its ``ndisp`` is not below its
+        width (no pair can be matched over such a range).
+        """
+        files = dict(self.required)
+        for attribute, _ in self.required:
+            if getattr(scene, attribute) is None:
+                path = self.scoring_file(scene, attribute)
+                return f"missing {path.name} in {path.parent}"
+        width = scene.left.shape[1]
+        if scene.ndisp >= width:
+            return f"ndisp {scene.ndisp} is not below the image width {width}"
+        if scene.ground_truth is None:
+            return None
+        known = np.isfinite(scene.ground_truth)
+        if not known.any():
+            return f"{files.get('ground_truth', 'the ground truth')} has no known disparity"
+        if scene.mask is not None and not (known & (scene.mask == 255)).any():
+            return (f"{files.get('mask', 'the mask')} marks no pixel of known disparity "
+                    "non-occluded (255)")
+        return None
+
 
 def ndisp_from_ground_truth(ground_truth: np.ndarray) -> int:
     """Disparity count of the protocol for layouts without one: a multiple of 8 >= max + 2.
@@ -146,8 +185,9 @@ def ndisp_from_ground_truth(ground_truth: np.ndarray) -> int:
 
 
 def ndisp_or_rule(name: str, ground_truth: np.ndarray | None, file_name: str,
-                  missing: str) -> int:
-    """:func:`ndisp_from_ground_truth` of scene ``name``, as an :class:`InputError`.
+                  missing: str, *, limit: int | None = None) -> int:
+    """:func:`ndisp_from_ground_truth` of scene ``name`` (at most ``limit``), as an
+    :class:`InputError`.
 
     Parameters
     ----------
@@ -159,6 +199,8 @@ def ndisp_or_rule(name: str, ground_truth: np.ndarray | None, file_name: str,
         Ground-truth file name, for the message when it knows no disparity.
     missing : str
         The message when ``ground_truth`` is ``None``.
+    limit : int, optional
+        Largest count returned: the image width - 1, the widest range a pair allows.
 
     Returns
     -------
@@ -167,9 +209,10 @@ def ndisp_or_rule(name: str, ground_truth: np.ndarray | None, file_name: str,
     if ground_truth is None:
         raise InputError(missing)
     try:
-        return ndisp_from_ground_truth(ground_truth)
+        ndisp = ndisp_from_ground_truth(ground_truth)
     except ValueError as exc:
         raise InputError(f"scene {name}: {file_name}: {exc}") from exc
+    return ndisp if limit is None else max(1, min(ndisp, int(limit)))
 
 
 def require_files(name: str, folder: Path, file_names: Sequence[str]) -> None:

@@ -1,12 +1,23 @@
 """The ETH3D two-view layout: what its two training archives unpack to.
 
-Folders are ``<root>/two_view_training/<scene>/{im0.png,im1.png,calib.txt}`` (gray images
-stored as PNG, one channel or RGB) beside ``<root>/two_view_training_gt/<scene>/{disp0GT.pfm,
-mask0nocc.png}`` (PFM with ``inf`` = unknown; the mask used as it is, 255 = non-occluded);
-``root`` may also be the ``two_view_training`` folder. ``ndisp`` comes from ``calib.txt`` when
-it has an ``ndisp=`` line, otherwise from
-:func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`. Arrays as in
+Folders are ``<root>/two_view_training/<scene>/{im0.png,im1.png,calib.txt}`` (the archive also
+holds COLMAP's ``cameras.txt`` and ``images.txt``, not read) beside
+``<root>/two_view_training_gt/<scene>/{disp0GT.pfm,mask0nocc.png}`` (PFM with ``inf`` =
+unknown; the mask used as it is, 255 = non-occluded); ``root`` may also be the
+``two_view_training`` folder. The images come from the gray cameras of ETH3D's rig, as 8-bit
+PNG of one channel; they are read as stored, so a copy converted to RGB loads too. Arrays as in
 :mod:`sswjax.data.layouts.base`: ``left`` and ``right`` may differ in channels.
+
+The disparity count
+-------------------
+``calib.txt`` is in Middlebury's format (``cam0``, ``cam1``, ``doffs``, ``baseline``, ``width``,
+``height``, ``ndisp``, ``isint``, ``vmin``, ``vmax``, ``dyavg``, ``dymax``), but ETH3D writes the
+image width as ``ndisp`` (``width=942`` ... ``ndisp=942`` in every training scene): a bound that
+allows any disparity, not a search range, and one no pair can be matched over (``ndisp`` must
+be below the width). So an ``ndisp`` below the image width is used as it is; one that is not,
+or none, gives way to the ground-truth rule
+(:func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`: the smallest multiple of 8 >= the
+largest known disparity + 2), at most the image width - 1. An explicit ``ndisp`` replaces both.
 
 Its scene folders look like MiddEval3's, which it therefore supersedes in detection.
 """
@@ -72,6 +83,9 @@ class Eth3dLayout(Layout):
     split: str = "two_view_training"
     ground_truth_split: str = "two_view_training_gt"
     supersedes = ("MiddEval3",)
+    ndisp_rule = ("calib.txt's ndisp when below the image width; ETH3D writes the width there, "
+                  "which is no search range, so then the smallest multiple of 8 >= the largest "
+                  "known disparity + 2, at most the image width - 1")
 
     @property
     def files(self) -> str:
@@ -81,6 +95,10 @@ class Eth3dLayout(Layout):
     @property
     def required(self) -> tuple[tuple[str, str], ...]:
         return (("ground_truth", self.ground_truth), ("mask", self.mask))
+
+    def scoring_file(self, scene: StereoScene, attribute: str) -> Path:
+        base = scene.path.parent  # the two_view_training folder
+        return base.parent / self.ground_truth_split / scene.name / dict(self.required)[attribute]
 
     def _base(self, root: Path) -> Path | None:
         """The ``two_view_training`` folder: under ``root``, or ``root`` itself beside its GT."""
@@ -114,14 +132,20 @@ class Eth3dLayout(Layout):
             check_shape(name, self.ground_truth, ground_truth, self.left, shape)
         if (gt_folder / self.mask).is_file():
             mask = read_mask(name, gt_folder / self.mask, shape)
-        calib = folder / "calib.txt"
+        calib, width = folder / "calib.txt", shape[1]
+        written = None  # calib.txt's ndisp, when it has one
         if ndisp is None and calib.is_file() and re.search(r"(?m)^\s*ndisp\s*=", _text(calib)):
-            ndisp = read_calib(calib)["ndisp"]
+            written = read_calib(calib)["ndisp"]
+            ndisp = written if written < width else None
         if ndisp is None:
-            ndisp = ndisp_or_rule(
-                name, ground_truth, self.ground_truth,
+            missing = (
                 f"scene {name}: neither ndisp in {calib} nor ground truth in {gt_folder} to "
-                "size the search range; give sswjax evaluate --ndisp N")
+                "size the search range; give sswjax evaluate --ndisp N" if written is None else
+                f"scene {name}: ndisp={written} in {calib} is not below the image width "
+                f"{width} (no search range) and there is no ground truth in {gt_folder} to "
+                "size one; give sswjax evaluate --ndisp N")
+            ndisp = ndisp_or_rule(name, ground_truth, self.ground_truth, missing,
+                                  limit=width - 1)
         return StereoScene(name, left, right, int(ndisp), ground_truth, mask, folder)
 
 

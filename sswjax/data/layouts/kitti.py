@@ -5,7 +5,8 @@ Folders are ``<root>/training/<view folder>/<frame>_10.png`` (``root`` may also 
 ``round(disparity * 256)``, 0 = unknown (:func:`sswjax.data.scaled.read_scaled_disparity`).
 ``disp_noc`` holds only non-occluded pixels, so every pixel it knows is 255 in the mask; when
 ``disp_occ`` is there too it becomes the ground truth and the pixels only it knows are 128.
-There is no disparity count: :func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`.
+There is no disparity count: :func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`, at
+most the image width - 1.
 Arrays as in :mod:`sswjax.data.layouts.base`; KITTI 2012 images are gray ``(H, W)``, 2015 RGB.
 """
 
@@ -68,6 +69,10 @@ class KittiLayout(Layout):
     def required(self) -> tuple[tuple[str, str], ...]:
         return (("ground_truth", self.ground_truth),)
 
+    def scoring_file(self, scene: StereoScene, attribute: str) -> Path:
+        base = scene.path.parent  # the folder of the view folders
+        return base / dict(self.required)[attribute] / f"{scene.name}{_FRAME_SUFFIX}"
+
     def _base(self, root: Path) -> Path | None:
         """The folder holding the view folders under ``root`` (or ``root`` itself)."""
         for base in (root / self.split, root):
@@ -112,7 +117,8 @@ class KittiLayout(Layout):
             ndisp = ndisp_or_rule(
                 name, ground_truth, source.ground_truth.name,
                 f"scene {name}: no ground truth ({source.ground_truth}) to size the search "
-                "range; give the disparity count (sswjax evaluate --ndisp N)")
+                "range; give the disparity count (sswjax evaluate --ndisp N)",
+                limit=shape[1] - 1)
         return StereoScene(name, left, right, int(ndisp), ground_truth, mask, source.left.parent)
 
 

@@ -192,6 +192,7 @@ class MiddEval3Layout(Layout):
 
     name: str = "MiddEval3"
     scoring = "middeval3"
+    ndisp_rule = "ndisp of each scene's calib.txt"
 
     @property
     def files(self) -> str:

@@ -6,7 +6,8 @@ Folders are ``<root>/<scene>/<files>`` with fixed file names per set. The ground
 2005/2006 ``disp1.png`` at the scale of the image size (1 full, 2 half, 3 third size, told by
 the width). A ``dmin.txt`` beside a 2005/2006 map (full size) holds an offset added to its known
 disparities. These sets have no occlusion mask (``None``: scored on region "all" only) and no
-disparity count (:func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`). Arrays as in
+disparity count (:func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`, at most the image
+width - 1). Arrays as in
 :mod:`sswjax.data.layouts.base`; the images are ``(H, W, 3)`` ``uint8``.
 
 2001 and 2003 share their file names, as do 2005 and 2006: :attr:`MiddleburyLayout.known_scenes`
@@ -108,7 +109,7 @@ class MiddleburyLayout(Layout):
             ndisp = ndisp_or_rule(
                 name, ground_truth, gt_path.name,
                 f"scene {name}: no ground truth ({gt_path}) to size the search range; give "
-                "the disparity count (sswjax evaluate --ndisp N)")
+                "the disparity count (sswjax evaluate --ndisp N)", limit=left.shape[1] - 1)
         return StereoScene(name, left, right, int(ndisp), ground_truth, None, source)
 
 

@@ -3,8 +3,9 @@
 Adding a layout is one :class:`~sswjax.data.layouts.base.Layout` subclass (its module) and its
 entry in :data:`LAYOUTS`. The layout of a folder is told by its files (:func:`detect_layout`);
 layouts with the same file names (Middlebury 2001 and 2003; 2005 and 2006) are told apart by a
-year in the folder's name, then by their known scene names. Arrays as in
-:mod:`sswjax.data.layouts.base`.
+year in the folder's name, then by their known scene names. :func:`load_scenes` stops at the
+first scene it cannot load; :func:`load_scenes_checked` tries every scene and returns the
+others' problems beside the good ones. Arrays as in :mod:`sswjax.data.layouts.base`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax._files import InputError
+from sswjax._files import InputError, first_line
 from sswjax.data.layouts.base import Layout, StereoScene, select
 from sswjax.data.layouts.eth3d import ETH3D
 from sswjax.data.layouts.kitti import KITTI2012, KITTI2015
@@ -28,7 +29,7 @@ from sswjax.data.layouts.middlebury import (
     MIDDLEBURY2006,
 )
 
-__all__ = ["DEFAULT_LAYOUT", "LAYOUTS", "detect_layout", "load_scenes"]
+__all__ = ["DEFAULT_LAYOUT", "LAYOUTS", "detect_layout", "load_scenes", "load_scenes_checked"]
 
 #: Every layout that :func:`detect_layout` recognises, by name, in the order it tries them.
 LAYOUTS: dict[str, Layout] = {layout.name: layout for layout in (
@@ -95,6 +96,20 @@ def detect_layout(root: str | os.PathLike, *, split: str = "trainingQ") -> Layou
     raise InputError(f"no known stereo data layout in {root}; recognised: {known}")
 
 
+def _chosen(root: Path, layout: Layout | str | None, split: str, ndisp: int | None) -> Layout:
+    """The layout to load ``root`` with, after checking ``ndisp`` (see :func:`load_scenes`)."""
+    if ndisp is not None and (isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer))
+                              or ndisp < 1):
+        raise ValueError(f"ndisp must be a positive integer, got {ndisp!r}")
+    if layout is None:
+        return detect_layout(root, split=split)
+    if isinstance(layout, str):
+        if layout not in LAYOUTS:
+            raise InputError(f"unknown layout {layout!r}; recognised: {', '.join(LAYOUTS)}")
+        return LAYOUTS[layout]
+    return layout
+
+
 def load_scenes(
     root: str | os.PathLike,
     *,
@@ -104,6 +119,9 @@ def load_scenes(
     ndisp: int | None = None,
 ) -> list[StereoScene]:
     """Load all (or selected) scenes of a data folder in any layout of :data:`LAYOUTS`.
+
+    Stops at the first scene that cannot be loaded; :func:`load_scenes_checked` loads every
+    scene it can and lists the others.
 
     Parameters
     ----------
@@ -137,16 +155,76 @@ def load_scenes(
     >>> [s.ndisp for s in load_scenes("/work/shared/data/Middlebury2001")]  # doctest: +SKIP
     [16, 16, 24, 24]
     """
-    if ndisp is not None and (isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer))
-                              or ndisp < 1):
-        raise ValueError(f"ndisp must be a positive integer, got {ndisp!r}")
     root = Path(root).expanduser()
-    if layout is None:
-        layout = detect_layout(root, split=split)
-    elif isinstance(layout, str):
-        if layout not in LAYOUTS:
-            raise InputError(f"unknown layout {layout!r}; recognised: {', '.join(LAYOUTS)}")
-        layout = LAYOUTS[layout]
+    layout = _chosen(root, layout, split, ndisp)
     available = layout.sources(root, split)
     return [layout.load(name, available[name], ndisp=ndisp)
             for name in select(available, scenes, root)]
+
+
+def _without_scene(name: str, message: str) -> str:
+    """``message`` without its leading ``scene <name>: `` (the problem lists name the scene)."""
+    prefix = f"scene {name}: "
+    return message[len(prefix):] if message.startswith(prefix) else message
+
+
+def load_scenes_checked(
+    root: str | os.PathLike,
+    *,
+    layout: Layout | str | None = None,
+    split: str = "trainingQ",
+    scenes: Sequence[str] | None = None,
+    ndisp: int | None = None,
+    scorable: bool = True,
+) -> tuple[list[StereoScene], list[tuple[str, str]]]:
+    """Like :func:`load_scenes`, but every scene is tried: the good ones and why the others fail.
+
+    Parameters
+    ----------
+    root, layout, split, scenes, ndisp
+        As in :func:`load_scenes`.
+    scorable : bool
+        Also count as a problem what keeps a loaded scene from being scored
+        (:meth:`~sswjax.data.layouts.base.Layout.problem`: missing ground truth or mask, no
+        known disparity, ``ndisp`` not below the width).
+
+    Returns
+    -------
+    scenes : list of StereoScene
+        The scenes without a problem, in the order of ``scenes`` (default sorted by name).
+    problems : list of (str, str)
+        ``(scene name, reason)`` of every other scene, in the same order; the reason is one
+        line, naming the file (the messages of :func:`load_scenes` without their
+        ``scene <name>:``).
+
+    Raises
+    ------
+    InputError
+        What concerns the whole folder, as :func:`load_scenes`: the data missing or of no
+        known layout, a requested scene that does not exist.
+    ValueError
+        If ``ndisp`` is not a positive integer.
+
+    Examples
+    --------
+    >>> good, bad = load_scenes_checked("MiddEval3/trainingQ")  # doctest: +SKIP
+    >>> bad  # doctest: +SKIP
+    [('Vintage', 'disp0GT.pfm has no known disparity')]
+    """
+    root = Path(root).expanduser()
+    layout = _chosen(root, layout, split, ndisp)
+    available = layout.sources(root, split)
+    loaded: list[StereoScene] = []
+    problems: list[tuple[str, str]] = []
+    for name in select(available, scenes, root):
+        try:
+            scene = layout.load(name, available[name], ndisp=ndisp)
+        except (ValueError, OSError) as error:  # InputError, or a file the OS refuses
+            problems.append((name, _without_scene(name, first_line(error))))
+            continue
+        problem = layout.problem(scene) if scorable else None
+        if problem is None:
+            loaded.append(scene)
+        else:
+            problems.append((name, problem))
+    return loaded, problems
