@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.graph import ssw_disparity
+from sswjax.runtime.executables import EXECUTABLES
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape
 
 BUCKETS = ShapeBuckets(size_step=64, ndisp_step=16)
@@ -38,14 +38,14 @@ def _pair(height, width, shift, seed):
 
 def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
     params = sswjax.Params().replace(n_segments=20)
-    before = ssw_disparity._cache_size()
+    EXECUTABLES.clear()
     for (height, width), ndisp in (((40, 60), 12), ((50, 64), 9), ((64, 50), 16)):
         left, right = _pair(height, width, 5, height)
         disparity = sswjax.match(left, right, ndisp, params=params, buckets=BUCKETS)
         assert disparity.shape == (height, width)
         assert disparity.max() <= ndisp - 1
         assert np.median(disparity[:, 12:]) == pytest.approx(5, abs=0.01)
-    assert ssw_disparity._cache_size() - before == 1
+    assert len(EXECUTABLES) == 1  # one bucket, one compiled graph
 
 
 def test_padded_disparities_are_never_chosen():

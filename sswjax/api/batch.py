@@ -16,7 +16,6 @@ them, one pair per device per call, so a call never holds more than one cost vol
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Iterator, Sequence
 
@@ -30,17 +29,22 @@ from sswjax.config import Params, check_params, default_params
 from sswjax.graph import DEFAULT_CHUNK, ssw_disparity
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
 from sswjax.runtime.devices import BATCH_AXIS, device_mesh, pad_batch
+from sswjax.runtime.executables import bounded
 
 __all__ = ["iter_match_scenes", "match_batch", "match_scenes"]
 
 
-@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
-def _batched(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
+def _vmapped(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
+    """:func:`~sswjax.graph.ssw_disparity` of each pair of a batch (``jax.vmap``)."""
     def one(left, right, valid_ndisp):
         return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
                              chunk=chunk)
 
     return jax.vmap(one)(lefts, rights, valid_ndisps)
+
+
+_batched = bounded(_vmapped, static_argnames=("ndisp", "chunk"))
+"""The batched graph, its executables bounded (:mod:`sswjax.runtime.executables`)."""
 
 
 def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: Mesh,

@@ -17,11 +17,16 @@ from sswjax.api.ranges import check_disparity_range, from_range_frame, range_fra
 from sswjax.config import Params, check_params, default_params
 from sswjax.graph import ssw_disparity, ssw_outputs
 from sswjax.runtime.buckets import ShapeBuckets
+from sswjax.runtime.executables import bounded
 from sswjax.runtime.memory import plan_for_memory
 from sswjax.runtime.plan import ExecutionPlan, check_plan, execute
 from sswjax.stages.confidence import DEFAULT_MEASURE, DEFAULT_THRESHOLD, MEASURES, validity_mask
 
 __all__ = ["Matched", "match", "match_graph", "match_with_confidence", "resolve_plan"]
+
+_DISPARITY = bounded(ssw_disparity, static_argnames=("ndisp", "chunk"))
+_OUTPUTS = bounded(ssw_outputs, static_argnames=("ndisp", "chunk", "measure"))
+"""The graphs of the entry points, their executables bounded (:mod:`sswjax.runtime.executables`)."""
 
 
 def match(
@@ -72,7 +77,7 @@ def match(
     >>> round(float(np.median(d[:, 16:])), 2)
     5.0
     """
-    return match_graph(left, right, ndisp, graph=ssw_disparity, min_disp=min_disp, params=params,
+    return match_graph(left, right, ndisp, graph=_DISPARITY, min_disp=min_disp, params=params,
                        buckets=buckets, plan=plan, check_memory=check_memory)
 
 
@@ -139,7 +144,7 @@ def match_with_confidence(
     if isinstance(low_confidence, bool) or not isinstance(low_confidence, (int, float, np.floating)) \
             or not 0.0 <= float(low_confidence) <= 1.0:
         raise ValueError(f"low_confidence must be a number in [0, 1], got {low_confidence!r}")
-    outputs = match_graph(left, right, ndisp, graph=functools.partial(ssw_outputs, measure=measure),
+    outputs = match_graph(left, right, ndisp, graph=functools.partial(_OUTPUTS, measure=measure),
                           min_disp=min_disp, params=params, buckets=buckets, plan=plan,
                           check_memory=check_memory)
     validity = validity_mask(outputs.disparity, outputs.confidence, outputs.lr_failed,
