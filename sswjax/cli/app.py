@@ -19,7 +19,7 @@ from sswjax.cli.download import add_download_command
 from sswjax.cli.evaluate import add_evaluate_command
 from sswjax.cli.match import add_match_command
 from sswjax.cli.params import add_params_command
-from sswjax.runtime.compilation import enable_compilation_cache
+from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
 from sswjax.runtime.memory import MemoryEstimateError
 
 __all__ = ["USER_ERRORS", "build_parser", "main"]
@@ -55,10 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
     args.argv = argv
-    if not args.no_cache:
-        enable_compilation_cache()
+    cache = None if args.no_cache else enable_compilation_cache()
     try:
-        return args.run(args)
+        with repairing_cache(cache):
+            return args.run(args)
     except USER_ERRORS as error:
         if args.debug:
             raise

@@ -1,15 +1,29 @@
-"""XLA's persistent compilation cache for sswjax processes.
+"""XLA's persistent compilation cache for sswjax processes, and the repair of damaged entries.
 
 Compiling the pipeline for a new shape takes seconds; with the cache on, a second process that
-meets the same shape and parameters loads the compiled program from disk instead.
+meets the same shape and parameters loads the compiled program from disk instead. JAX never
+replaces an entry it cannot read (it compiles again and keeps the damaged file, warning on every
+run); :func:`repairing_cache` removes such entries, so the next run writes them anew.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import warnings
+import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import jax
+
+__all__ = ["default_cache_dir", "damaged_entries", "enable_compilation_cache", "repairing_cache"]
+
+_UNREADABLE = "Error reading persistent compilation cache entry"
+"""The start of JAX's warning when an entry cannot be read."""
+
+_ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 
 
 def default_cache_dir() -> Path:
@@ -37,3 +51,73 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     return folder
+
+
+def _readable(data: bytes) -> bool:
+    """Whether a cache entry's bytes decompress (zlib, or zstd when the package is there)."""
+    if data.startswith(_ZSTD_MAGIC):
+        try:
+            import zstandard  # optional: JAX writes zstd only when it is installed
+        except ImportError:
+            return True  # cannot tell: leave it
+        try:
+            zstandard.ZstdDecompressor().decompress(data)
+        except zstandard.ZstdError:
+            return False
+        return True
+    try:
+        zlib.decompress(data)
+    except zlib.error:
+        return False
+    return True
+
+
+def damaged_entries(folder: str | os.PathLike) -> list[Path]:
+    """The entries of a cache folder that cannot be decompressed (truncated or corrupt).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> (folder / "jit_f-1-cache").write_bytes(zlib.compress(b"program"))
+    15
+    >>> (folder / "jit_f-2-cache").write_bytes(zlib.compress(b"program")[:-4])
+    11
+    >>> [path.name for path in damaged_entries(folder)]
+    ['jit_f-2-cache']
+    """
+    found = []
+    for path in sorted(Path(folder).glob("*-cache")):
+        try:
+            data = path.read_bytes()
+        except OSError:
+            continue
+        if not _readable(data):
+            found.append(path)
+    return found
+
+
+@contextlib.contextmanager
+def repairing_cache(folder: str | os.PathLike | None) -> Iterator[None]:
+    """Within it, JAX's warning about an unreadable cache entry is replaced by the removal of
+    the damaged entries of ``folder`` and one line on stderr: JAX then compiles the program
+    and, the damaged file gone, stores it anew. Other warnings are shown as usual. ``None``:
+    nothing is done."""
+    if folder is None:
+        yield
+        return
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not str(message).startswith(_UNREADABLE):
+            return shown(message, category, filename, lineno, file, line)
+        for path in damaged_entries(folder):
+            path.unlink(missing_ok=True)
+            print(f"sswjax: note: removed a damaged entry of the compilation cache ({path}); "
+                  "the program is compiled and stored anew", file=sys.stderr)
+        return None
+
+    with warnings.catch_warnings():  # restores showwarning and the filters on exit
+        warnings.filterwarnings("always", message=_UNREADABLE)
+        warnings.showwarning = show
+        yield

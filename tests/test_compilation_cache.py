@@ -1,0 +1,39 @@
+"""The persistent compilation cache: a damaged entry is removed and stored anew, once, with one
+line for the user instead of JAX's warning on every run."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zlib
+
+from sswjax.runtime.compilation import damaged_entries
+
+
+def _match(small_pair, tmp_path, cache, name):
+    env = dict(os.environ, SSWJAX_CACHE_DIR=str(cache))
+    files = small_pair.folder
+    return subprocess.run([sys.executable, "-m", "sswjax.cli", "match", files / "left.png",
+                           files / "right.png", "--ndisp", "8", "--preset", "paper",
+                           "-o", tmp_path / f"{name}.pfm"], env=env, capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_a_damaged_cache_entry_is_replaced(small_pair, tmp_path):
+    cache = tmp_path / "cache"
+    first = _match(small_pair, tmp_path, cache, "first")
+    assert first.returncode == 0, first.stderr
+    (entry,) = cache.glob("*-cache")
+    data = bytearray(entry.read_bytes())
+    data[len(data) // 2:len(data) // 2 + 64] = bytes(64)  # zeros inside the compressed program
+    entry.write_bytes(bytes(data))
+    assert damaged_entries(cache) == [entry]
+    second = _match(small_pair, tmp_path, cache, "second")
+    assert second.returncode == 0, second.stderr
+    assert "removed a damaged entry of the compilation cache" in second.stderr
+    assert "Warning" not in second.stderr and "site-packages" not in second.stderr
+    assert damaged_entries(cache) == [] and zlib.decompress(entry.read_bytes())
+    third = _match(small_pair, tmp_path, cache, "third")
+    assert third.returncode == 0 and third.stderr.count("\n") <= 1, third.stderr  # no note
+    assert (tmp_path / "third.pfm").read_bytes() == (tmp_path / "first.pfm").read_bytes()
