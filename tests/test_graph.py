@@ -336,8 +336,18 @@ def test_to_float_image_errors():
         to_float_image(np.zeros((2, 2), np.int32))
     with pytest.raises(ValueError, match="NaN or infinite"):
         to_float_image(np.array([[0.0, np.nan]]))
-    with pytest.raises(ValueError, match="NaN or infinite"):
+    with pytest.raises(ValueError, match=r"beyond float32's range \(largest magnitude 1e\+300\)"):
         to_float_image(np.array([[0.0, 1e300]]))  # overflows float32, without a warning
+    with pytest.raises(ValueError, match=r"floating with values in \[0, 255\]: floating images "
+                                         r"must be in \[0, 1\]"):
+        to_float_image(np.array([[0.0, 255.0]]))
+    with pytest.raises(ValueError, match=r"values in \[-0.5, 0.5\]"):
+        to_float_image(np.array([[-0.5, 0.5]]))
+    with pytest.raises(ValueError, match=r"^left image is a path \('im0.png'\), not an array: "
+                                         r"read it first, e.g. sswjax.data.io.read_image\(path\)$"):
+        to_float_image("im0.png", name="left")
+    with pytest.raises(ValueError, match="must be a NumPy or JAX array, got list"):
+        to_float_image([[0, 1]])
     with pytest.raises(ValueError, match="left image must be HxW"):
         to_float_image(np.zeros((2, 2, 2), np.uint8), name="left")
     with pytest.raises(ValueError, match="HxW"):

@@ -7,6 +7,8 @@ arrays of uint8, uint16 or floats in [0, 1]; they are converted to float32 ``(H,
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from sswjax.config import Params
@@ -20,9 +22,9 @@ def to_float_image(image, *, name: str = "image") -> np.ndarray:
 
     Parameters
     ----------
-    image : array_like (H, W) or (H, W, 1|3|4)
-        uint8 (divided by 255), uint16 (divided by 65535) or floating (used as given, assumed in
-        [0, 1], must be finite in float32). Alpha is dropped.
+    image : array (H, W) or (H, W, 1|3|4)
+        A NumPy or JAX array: uint8 (divided by 255), uint16 (divided by 65535) or floating
+        (used as given: values in [0, 1], finite in float32). Alpha is dropped.
     name : str
         How error messages call the image (``"left"``, ``"right"``).
 
@@ -33,13 +35,21 @@ def to_float_image(image, *, name: str = "image") -> np.ndarray:
     Raises
     ------
     ValueError
-        On a bad shape, an empty image, another dtype (bool, int32, ...) or non-finite values.
+        On a path or a list instead of an array, a bad shape, an empty image, another dtype
+        (bool, int32, ...), non-finite values, values beyond float32, or floats outside
+        [0, 1] (such as 0-255 values in a float array, or a disparity map).
 
     Examples
     --------
     >>> to_float_image(np.array([[0, 255]], dtype=np.uint8))[..., 0]
     array([[0., 1.]], dtype=float32)
     """
+    if isinstance(image, (str, os.PathLike)):
+        raise ValueError(f"{name} image is a path ({os.fspath(image)!r}), not an array: read it "
+                         "first, e.g. sswjax.data.io.read_image(path)")
+    if not hasattr(image, "shape") or not hasattr(image, "dtype"):
+        raise ValueError(f"{name} image must be a NumPy or JAX array, got "
+                         f"{type(image).__name__}")
     image = np.asarray(image)
     if image.ndim == 2:
         image = image[..., None]
@@ -54,11 +64,19 @@ def to_float_image(image, *, name: str = "image") -> np.ndarray:
         return image.astype(np.float32) / np.float32(65535)
     if not np.issubdtype(image.dtype, np.floating):
         raise ValueError(f"{name} image must be uint8, uint16 or float, got {image.dtype}")
-    with np.errstate(over="ignore", invalid="ignore"):
-        image = image.astype(np.float32)
     if not np.isfinite(image).all():
         raise ValueError(f"{name} image contains NaN or infinite values")
-    return image
+    with np.errstate(over="ignore", invalid="ignore"):
+        single = image.astype(np.float32)
+    if not np.isfinite(single).all():
+        raise ValueError(f"{name} image has values beyond float32's range (largest magnitude "
+                         f"{float(np.abs(image).max()):.3g})")
+    low, high = float(single.min()), float(single.max())
+    if low < 0 or high > 1:
+        raise ValueError(f"{name} image is floating with values in [{low:.4g}, {high:.4g}]: "
+                         "floating images must be in [0, 1] (divide 8-bit values by 255; a "
+                         "disparity map is not an image)")
+    return single
 
 
 def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:

@@ -117,7 +117,7 @@ def test_outputs_same_for_every_chunk_and_equal_to_ssw_disparity(optimizer):
     left, right = _pair()
     params = Params().replace(n_segments=16, optimizer=optimizer)
     params = params.replace(sgm_paths=4) if optimizer != "none" else params
-    outputs = [graph.ssw_outputs(left, right, params, ndisp=12, chunk=k) for k in (0, 4, 5)]
+    outputs = [graph.ssw_outputs(left, right, params, ndisp=12, chunk=k) for k in (0, 5)]
     disparity = graph.ssw_disparity(left, right, params, ndisp=12)
     for out in outputs:
         np.testing.assert_array_equal(np.asarray(out.disparity), np.asarray(disparity))
