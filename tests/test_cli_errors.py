@@ -137,11 +137,19 @@ def test_match_unreadable_image(files, run_cli):
         ("[1, 2]", "parameters must be a JSON object, got list"),
         ("{not json", "cannot read parameter file {p}: Expecting property name"),
         (b"\xff\xfe{}", "cannot read parameter file {p}: 'utf-8' codec can't decode"),
+        ('{"dynamic": {"tad_weight": 1e308, "census_weight": 1e308}}',
+         "parameter tad_weight must be finite in float32 (the graph's dtype), got 1e+308"),
+        ('{"tad_weight": 0, "gradient_weight": 0, "census_weight": 0}',
+         "parameters tad_weight, gradient_weight and census_weight are all 0: no pixel has a cost"),
+        ('{"static": {"census_width": 1, "census_height": 1}}',
+         "parameters census_height and census_width: a 1 x 1 census window compares no neighbour"),
+        ("[" * 100_000 + "]" * 100_000, "cannot read parameter file {p}: nested too deeply"),
     ],
     ids=["nan", "infinity", "negative-truncation", "negative-weight", "int-too-large", "even-census",
          "negative-radius", "fill-radius-too-large", "separable-fill-radius-too-large",
          "unknown-static-key", "unknown-key", "string-for-int", "string-for-bool",
-         "null-for-number", "not-an-object", "bad-json", "not-utf8"],
+         "null-for-number", "not-an-object", "bad-json", "not-utf8", "beyond-float32",
+         "no-weight", "census-1x1", "nested-too-deeply"],
 )
 def test_match_bad_params_json(files, tmp_path, run_cli, content, message):
     params = tmp_path / "params.json"
