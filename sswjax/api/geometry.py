@@ -1,5 +1,6 @@
 """Depth maps and point clouds from a disparity map and the rig's calibration (the maths; the
-files are :mod:`sswjax.data.calibration` and :mod:`sswjax.data.ply`).
+files are :mod:`sswjax.data.calibration` and :mod:`sswjax.data.ply`), and the calibration of a
+raw stereo camera, :class:`StereoCalibration` (its rectification: :mod:`sswjax.api.rectify`).
 
 Conventions (whole module):
 
@@ -12,7 +13,11 @@ Conventions (whole module):
 - depth ``Z = baseline * f / (d + doffs)``, float32 ``(H, W)``, ``inf`` where ``d + doffs <= 0``
   or ``d`` is not finite;
 - points: the camera frame of the left view (x right, y down, z forward, OpenCV's
-  convention), ``X = (u - cx) Z / f``, ``Y = (v - cy) Z / f`` at column ``u`` and row ``v``.
+  convention), ``X = (u - cx) Z / f``, ``Y = (v - cy) Z / f`` at column ``u`` and row ``v``;
+- a :class:`StereoCalibration` is OpenCV's: float64 camera matrices ``K (3, 3)``, distortion
+  ``D (n,)`` (``k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3 s4 [tx ty]]]]``, n in 0, 4, 5, 8, 12, 14),
+  and the right camera's pose ``x_right = R x_left + T`` (``R (3, 3)``, ``T (3,)`` in the unit
+  depths come out in); image sizes are ``(width, height)``.
 """
 
 from __future__ import annotations
@@ -25,7 +30,9 @@ import numpy as np
 from sswjax._checks import check_floating, check_rank
 from sswjax.api.images import to_float_image
 
-__all__ = ["Calibration", "PointCloud", "check_calibration", "depth_from_disparity", "point_cloud"]
+__all__ = ["Calibration", "PointCloud", "Rectification", "StereoCalibration", "check_calibration",
+           "check_stereo_calibration", "checked_array", "colours", "depth_from_disparity",
+           "point_cloud"]
 
 
 class Calibration(NamedTuple):
@@ -130,7 +137,7 @@ def depth_from_disparity(disparity, *, focal: float, baseline: float, doffs: flo
     return depth
 
 
-def _colours(image) -> np.ndarray:
+def colours(image) -> np.ndarray:
     """uint8 ``(H, W, 3)`` colours of a user image (the formats of :func:`sswjax.match`)."""
     rgb = np.round(to_float_image(image) * 255).clip(0, 255).astype(np.uint8)
     return np.repeat(rgb, 3, axis=-1) if rgb.shape[-1] == 1 else rgb
@@ -164,7 +171,7 @@ def point_cloud(disparity, image, calib: Calibration) -> PointCloud:
     calib = check_calibration(calib)
     disparity = np.asarray(disparity)
     check_rank("disparity", disparity, 2)
-    rgb = _colours(image)
+    rgb = colours(image)
     if rgb.shape[:2] != disparity.shape:
         raise ValueError(f"image of {rgb.shape[1]}x{rgb.shape[0]} and disparity of "
                          f"{disparity.shape[1]}x{disparity.shape[0]} differ in size")
@@ -176,3 +183,160 @@ def point_cloud(disparity, image, calib: Calibration) -> PointCloud:
     z = depth[rows, cols].astype(np.float64)
     xyz = np.stack([(cols - cx) * z / calib.focal, (rows - cy) * z / calib.focal, z], axis=-1)
     return PointCloud(xyz.astype(np.float32), rgb[rows, cols])
+
+
+# ----------------------------------------------------------------------------- raw stereo rigs
+
+
+class Rectification(NamedTuple):
+    """A rig's rectification, as ``cv2.stereoRectify`` gives it (float64).
+
+    ``r1``, ``r2`` (3, 3): rotations from each raw camera's frame to its rectified frame;
+    ``p1``, ``p2`` (3, 4): projections from the rectified left frame into each rectified image;
+    ``q`` (4, 4) or None: disparity-to-depth matrix (``cv2.reprojectImageTo3D``); ``size``
+    ``(width, height)`` of the rectified images, or None for the raw images' size.
+    """
+
+    r1: np.ndarray
+    r2: np.ndarray
+    p1: np.ndarray
+    p2: np.ndarray
+    q: np.ndarray | None = None
+    size: tuple[int, int] | None = None
+
+
+class StereoCalibration(NamedTuple):
+    """A calibrated stereo camera: OpenCV's ``K1 D1 K2 D2 R T`` (module docstring).
+
+    ``image_size`` ``(width, height)`` of the raw images (None: not in the file);
+    ``rectification`` the one the calibration tool computed, if any; ``rectified`` True for a
+    rig whose images are rectified already (Middlebury's ``calib.txt``, KITTI's rectified
+    cameras): rectification leaves its images as they are.
+    """
+
+    left_matrix: np.ndarray
+    left_distortion: np.ndarray
+    right_matrix: np.ndarray
+    right_distortion: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    image_size: tuple[int, int] | None = None
+    rectification: Rectification | None = None
+    rectified: bool = False
+
+
+NAMES = {"left_matrix": "K1", "left_distortion": "D1", "right_matrix": "K2",
+         "right_distortion": "D2", "rotation": "R", "translation": "T", "image_size": "image size",
+         "r1": "R1", "r2": "R2", "p1": "P1", "p2": "P2", "q": "Q", "size": "rectified size"}
+"""Field of :class:`StereoCalibration` and :class:`Rectification` -> its name in messages."""
+
+DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
+"""Distortion vector lengths OpenCV's pinhole model takes."""
+
+
+def checked_array(value, name: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """float64 array of ``value`` with ``shape`` (a vector ``(n,)`` takes any shape of ``n``
+    numbers), every value finite; else ``ValueError`` of one line naming ``name``."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers, got {str(value)[:40]!r}") from None
+    if shape is not None and len(shape) == 1 and array.size == shape[0]:
+        array = array.reshape(shape)
+    if shape is not None and array.shape != shape:
+        want, got = "x".join(map(str, shape)), "x".join(map(str, array.shape)) or "one number"
+        raise ValueError(f"{name} must be {want}, got {got}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name} has non-finite values")
+    return array
+
+
+def _camera_matrix(value, name: str, columns: int = 3) -> np.ndarray:
+    """A 3x3 (or 3x4 projection) ``[fx s cx; 0 fy cy; 0 0 1]`` with ``fx, fy > 0``."""
+    matrix = checked_array(value, name, (3, columns))
+    if matrix[0, 0] == 0 or matrix[1, 1] == 0:
+        raise ValueError(f"{name} is singular: a focal length is 0")
+    if (matrix[1, 0], matrix[2, 0], matrix[2, 1]) != (0, 0, 0) or \
+            not math.isclose(matrix[2, 2], 1.0, abs_tol=1e-9):
+        raise ValueError(f"{name} is not a camera matrix [fx 0 cx; 0 fy cy; 0 0 1]")
+    if matrix[0, 0] < 0 or matrix[1, 1] < 0:
+        raise ValueError(f"{name} has a negative focal length")
+    return matrix
+
+
+def _rotation(value, name: str) -> np.ndarray:
+    matrix = checked_array(value, name, (3, 3))
+    error = float(np.abs(matrix @ matrix.T - np.eye(3)).max())
+    if error > 1e-4:
+        detail = "singular" if abs(np.linalg.det(matrix)) < 1e-9 else f"R R^T - I up to {error:.2g}"
+        raise ValueError(f"{name} is not a rotation matrix ({detail})")
+    if np.linalg.det(matrix) < 0:
+        raise ValueError(f"{name} is a reflection, not a rotation (determinant -1)")
+    return matrix
+
+
+def _size(value, name: str) -> tuple[int, int] | None:
+    if value is None:
+        return None
+    width, height = checked_array(value, name, (2,))
+    if not (width.is_integer() and height.is_integer() and width >= 1 and height >= 1):
+        raise ValueError(f"{name} must be two positive integers (width, height), "
+                         f"got {width:g} x {height:g}")
+    return int(width), int(height)
+
+
+def _distortion(value, name: str) -> np.ndarray:
+    flat = np.asarray(value, dtype=np.float64).reshape(-1) if value is not None else np.zeros(0)
+    if flat.size not in DISTORTION_SIZES:
+        raise ValueError(f"{name} must have 4, 5, 8, 12 or 14 coefficients, got {flat.size}")
+    if not np.isfinite(flat).all():
+        raise ValueError(f"{name} has non-finite values")
+    return flat
+
+
+def check_stereo_calibration(calib: StereoCalibration, *, names=None) -> StereoCalibration:
+    """Validate a :class:`StereoCalibration`; return it with float64 arrays.
+
+    Parameters
+    ----------
+    calib : StereoCalibration
+    names : mapping, optional
+        Field -> its name in the messages (default :data:`NAMES`, OpenCV's names); the
+        readers of :mod:`sswjax.data.calibration` pass the keys of their format.
+
+    Raises
+    ------
+    ValueError
+        One line naming the field: a wrong shape, non-finite values, a camera matrix that is
+        singular or not ``[fx 0 cx; 0 fy cy; 0 0 1]``, a distortion of the wrong length, a
+        rotation that is not one, a zero translation, a bad image size.
+
+    Examples
+    --------
+    >>> eye = np.eye(3)
+    >>> check_stereo_calibration(StereoCalibration(eye, None, eye, None, eye, [0, 0, 0]))
+    Traceback (most recent call last):
+    ...
+    ValueError: T is zero: the two cameras are at the same place
+    """
+    if not isinstance(calib, StereoCalibration):
+        raise TypeError(f"calib must be a sswjax.api.geometry.StereoCalibration, "
+                        f"got {type(calib).__name__}")
+    name = {**NAMES, **(names or {})}
+    translation = checked_array(calib.translation, name["translation"], (3,))
+    if not np.any(translation):
+        raise ValueError(f"{name['translation']} is zero: the two cameras are at the same place")
+    rect = calib.rectification
+    if rect is not None:
+        rect = Rectification(_rotation(rect.r1, name["r1"]), _rotation(rect.r2, name["r2"]),
+                             _camera_matrix(rect.p1, name["p1"], 4),
+                             _camera_matrix(rect.p2, name["p2"], 4),
+                             None if rect.q is None else checked_array(rect.q, name["q"], (4, 4)),
+                             _size(rect.size, name["size"]))
+    return StereoCalibration(
+        _camera_matrix(calib.left_matrix, name["left_matrix"]),
+        _distortion(calib.left_distortion, name["left_distortion"]),
+        _camera_matrix(calib.right_matrix, name["right_matrix"]),
+        _distortion(calib.right_distortion, name["right_distortion"]),
+        _rotation(calib.rotation, name["rotation"]), translation,
+        _size(calib.image_size, name["image_size"]), rect, bool(calib.rectified))

@@ -34,7 +34,10 @@ Validity bits (:func:`validity_mask`; 0 = valid):
 - bit 1 (``LEFT_BAND`` = 2): ``x - d < 0`` for the final disparity ``d`` in the image's own
   column frame: the matching right pixel would lie left of the right image (or, with a
   negative disparity range, ``x - d > W - 1``: right of it);
-- bit 2 (``LOW_CONFIDENCE`` = 4): confidence below the threshold given.
+- bit 2 (``LOW_CONFIDENCE`` = 4): confidence below the threshold given;
+- bit 3 (``OUTSIDE_VIEW`` = 8): outside the rectified view, set by :mod:`sswjax.api.rectify`
+  (not by :func:`validity_mask`): rectification filled the pixel, or its match, from outside
+  the raw image.
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ LEFT_BAND = 2
 """Validity bit 1: ``x - d < 0`` (or ``x - d > W - 1``), no match inside the right image."""
 LOW_CONFIDENCE = 4
 """Validity bit 2: confidence below the threshold."""
+OUTSIDE_VIEW = 8
+"""Validity bit 3: outside the rectified view (the pixel or its match lies outside the raw view)."""
 
 DEFAULT_MEASURE = "combined"
 DEFAULT_THRESHOLD = 0.05

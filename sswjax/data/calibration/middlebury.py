@@ -1,8 +1,11 @@
-"""Calibration files: Middlebury's ``calib.txt`` (MiddEval3, ETH3D and the older sets).
+"""Middlebury's ``calib.txt`` (MiddEval3, ETH3D and the older sets): a rectified rig.
 
 ``read_calib`` parses the ``key=value`` lines (``ndisp`` for the data layouts);
 ``read_calibration`` turns the left camera of one into a
-:class:`~sswjax.api.geometry.Calibration` for depth and point clouds.
+:class:`~sswjax.api.geometry.Calibration` for depth and point clouds;
+``read_middlebury_calibration`` gives both cameras as a
+:class:`~sswjax.api.geometry.StereoCalibration` (``rectified``: no distortion, no rotation, the
+right camera ``baseline`` to the right; ``width`` and ``height`` its image size).
 """
 
 from __future__ import annotations
@@ -12,10 +15,13 @@ import os
 import re
 from pathlib import Path
 
-from sswjax._files import InputError
-from sswjax.api.geometry import Calibration, check_calibration
+import numpy as np
 
-__all__ = ["read_calib", "read_calibration"]
+from sswjax._files import InputError
+from sswjax.api.geometry import Calibration, StereoCalibration, check_calibration
+from sswjax.data.calibration.common import checked, size_of
+
+__all__ = ["read_calib", "read_calibration", "read_middlebury_calibration"]
 
 
 def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[str, str | float]:
@@ -79,6 +85,17 @@ def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[s
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
+def _camera(path: Path, calib: dict, key: str) -> list[list[float]]:
+    """The 3x3 matrix ``[f 0 cx; 0 f cy; 0 0 1]`` of ``cam0`` or ``cam1``, as rows."""
+    text = str(calib[key])
+    rows = [re.findall(_NUMBER, row) for row in text.strip().strip("[]").split(";")]
+    if not (text.strip().startswith("[") and text.strip().endswith("]")) or \
+            [len(row) for row in rows] != [3, 3, 3]:
+        raise InputError(f"calibration file {path}: {key} must be [f 0 cx; 0 f cy; 0 0 1], "
+                         f"got {text[:60]!r}")
+    return [[float(v) for v in row] for row in rows]
+
+
 def read_calibration(path: str | os.PathLike) -> Calibration:
     """The left camera of a Middlebury ``calib.txt``: ``cam0``, ``baseline`` and ``doffs``.
 
@@ -110,13 +127,7 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
     missing = [key for key in ("cam0", "baseline") if key not in calib]
     if missing:
         raise InputError(f"calibration file {path} lacks {' and '.join(missing)}")
-    cam0 = str(calib["cam0"])
-    rows = [re.findall(_NUMBER, row) for row in cam0.strip().strip("[]").split(";")]
-    if not (cam0.strip().startswith("[") and cam0.strip().endswith("]")) or \
-            [len(row) for row in rows] != [3, 3, 3]:
-        raise InputError(f"calibration file {path}: cam0 must be [f 0 cx; 0 f cy; 0 0 1], "
-                         f"got {cam0[:60]!r}")
-    (fx, _, cx), (_, fy, cy), _ = [[float(v) for v in row] for row in rows]
+    (fx, _, cx), (_, fy, cy), _ = _camera(path, calib, "cam0")
     if not math.isclose(fx, fy, rel_tol=1e-6):
         raise InputError(f"calibration file {path}: cam0 has two focal lengths {fx:g} and "
                          f"{fy:g}; only square pixels are supported")
@@ -129,3 +140,46 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
                                              (cx, cy)))
     except ValueError as exc:
         raise InputError(f"calibration file {path}: {exc}") from exc
+
+
+def read_middlebury_calibration(path: str | os.PathLike) -> StereoCalibration:
+    """Both cameras of a Middlebury ``calib.txt`` as a rectified
+    :class:`~sswjax.api.geometry.StereoCalibration`.
+
+    ``K1 = cam0``, ``K2 = cam1`` (without ``cam1``: ``cam0`` moved by ``doffs``), no
+    distortion, ``R = I``, ``T = (-baseline, 0, 0)``; the image size from ``width`` and
+    ``height`` when both are there. ``doffs``, when given, must be ``cam1``'s ``cx`` minus
+    ``cam0``'s.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_calibration`, and on a bad ``cam1``, ``width`` or ``height``, or a
+        ``doffs`` that disagrees with the two cameras (one line naming the file and the key).
+
+    Examples
+    --------
+    >>> read_middlebury_calibration("trainingQ/Motorcycle/calib.txt").image_size  # doctest: +SKIP
+    (741, 497)
+    """
+    path = Path(path)
+    left = read_calibration(path)
+    calib = read_calib(path, require_ndisp=False)
+    cam0 = np.array(_camera(path, calib, "cam0"))
+    if "cam1" in calib:
+        cam1 = np.array(_camera(path, calib, "cam1"))
+        if "doffs" in calib and not math.isclose(cam1[0, 2] - cam0[0, 2], left.doffs,
+                                                 abs_tol=1e-3):
+            raise InputError(f"calibration file {path}: doffs {left.doffs:g} is not cam1's cx "
+                             f"minus cam0's ({cam1[0, 2] - cam0[0, 2]:g})")
+    else:
+        cam1 = cam0.copy()
+        cam1[0, 2] += left.doffs
+    size = None
+    if "width" in calib or "height" in calib:
+        size = size_of(path, "width", calib.get("width"), "height", calib.get("height"))
+    names = {"left_matrix": "cam0", "right_matrix": "cam1", "translation": "baseline",
+             "image_size": "width, height"}
+    return checked(path, StereoCalibration(cam0, np.zeros(0), cam1, np.zeros(0), np.eye(3),
+                                           np.array([-left.baseline, 0.0, 0.0]), size,
+                                           None, True), names)
