@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import sswjax
-from sswjax.data.io import InputError
 from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
 from sswjax.data.calibration import read_calibration
-from sswjax.data.ply import write_ply
+from sswjax.data.io import InputError
+from sswjax.data.ply import write_cloud, write_ply
 
 MOTORCYCLE_CALIB = """cam0=[999.421 0 294.182; 0 999.421 252.932; 0 0 1]
 cam1=[999.421 0 326.96; 0 999.421 252.932; 0 0 1]
@@ -81,6 +81,29 @@ def test_ply_read_by_plyfile(tmp_path):
     vertex = plyfile.PlyData.read(str(tmp_path / "cloud.ply"))["vertex"]
     np.testing.assert_allclose(np.stack([vertex[c] for c in "xyz"], -1), EXPECTED_XYZ, rtol=1e-6)
     np.testing.assert_array_equal(vertex["green"], [0, 255, 0])
+
+
+def test_ply_read_by_open3d(tmp_path):
+    # Open3D, when it installs (it needs libusb here), reads the same points and colours.
+    o3d = pytest.importorskip("open3d", exc_type=ImportError)
+    write_ply(tmp_path / "cloud.ply", *point_cloud(DISPARITY, IMAGE, CALIB))
+    cloud = o3d.io.read_point_cloud(str(tmp_path / "cloud.ply"))
+    np.testing.assert_allclose(np.asarray(cloud.points), EXPECTED_XYZ, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(cloud.colors) * 255, IMAGE.reshape(4, 3)[:3])
+
+
+def test_cloud_by_extension(tmp_path):
+    cloud = point_cloud(DISPARITY, IMAGE, CALIB)
+    write_cloud(tmp_path / "c.NPZ", *cloud)
+    with np.load(tmp_path / "c.NPZ") as saved:
+        assert sorted(saved.files) == ["rgb", "xyz"] and saved["xyz"].dtype == np.float32
+        np.testing.assert_array_equal(saved["xyz"], cloud.xyz)
+        np.testing.assert_array_equal(saved["rgb"], cloud.rgb)
+    write_cloud(tmp_path / "c.ply", *cloud)
+    np.testing.assert_array_equal(read_ply(tmp_path / "c.ply")[0], cloud.xyz)
+    with pytest.raises(ValueError, match="a point cloud is written as .ply or .npz, not '.xyz'"):
+        write_cloud(tmp_path / "c.xyz", *cloud)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.NPZ", "c.ply"]
 
 
 def test_point_cloud_colours_of_every_image_format():
@@ -189,7 +212,7 @@ def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli):
     from sswjax.data.io import read_pfm
 
     folder, out = small_pair.folder, tmp_path
-    code, stdout, stderr = run_cli([
+    code, _, stderr = run_cli([
         "match", folder / "left.png", folder / "right.png", "--ndisp", small_pair.ndisp,
         "-o", out / "d.pfm", "--depth", out / "z.pfm", "--ply", out / "c.ply",
         "--focal", 100, "--baseline", 0.5, "--doffs", 1, "--principal", 20, 12])
@@ -205,6 +228,18 @@ def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli):
     np.testing.assert_array_equal(xyz, expected.xyz)
     np.testing.assert_array_equal(rgb, expected.rgb)
     assert len(xyz) == np.isfinite(depth).sum()
+
+
+def test_cli_npz_cloud_and_depth_range(small_pair, tmp_path, run_cli):
+    folder = small_pair.folder
+    code, _, stderr = run_cli([
+        "match", folder / "left.png", folder / "right.png", "-o", tmp_path / "d.pfm",
+        "--ply", tmp_path / "c.npz", "--focal", 100, "--baseline", 0.5,
+        "--depth-range", 10, "inf"])                 # disparities 0 .. 5 (+ 2 px): 0..7
+    assert code == 0, stderr
+    assert "depths 10..inf are disparities 0..7 (--min-disp 0 --ndisp 8)" in stderr
+    with np.load(tmp_path / "c.npz") as cloud:
+        assert cloud["xyz"].shape == (small_pair.height * small_pair.width, 3)
 
 
 def test_cli_calib_file(small_pair, tmp_path, run_cli):
@@ -254,7 +289,8 @@ GOOD_CALIB = "cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\nbaseline=30\n"
     (None, ["--baseline", "3", "--doffs", "1", "--depth", "{out}/z.pfm"],
      "--baseline, --doffs need --focal"),
     (None, ["--focal", "100", "--depth", "{out}/z.pfm"], "--focal needs --baseline"),
-    (None, ["--depth", "{out}/z.pfm"], "--depth and --ply need --calib FILE or --focal F --baseline B"),
+    (None, ["--depth", "{out}/z.pfm"],
+     "--depth and --ply need --calib FILE, --focal F --baseline B or --rectify STEREO_CALIB"),
     (GOOD_CALIB, ["--calib", "{calib}", "--ply", "{out}/missing/c.ply"],
      "output folder does not exist: {out}/missing"),
     (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/missing/z.pfm"],
@@ -274,7 +310,7 @@ def test_match_geometry_bad_input(small_pair, tmp_path, run_cli, calib_text, opt
         calib.write_text(calib_text)
     names = {"tmp": tmp_path, "out": out, "calib": calib}
     folder = small_pair.folder
-    code, stdout, stderr = run_cli(["match", folder / "left.png", folder / "right.png",
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png",
                                     "--ndisp", small_pair.ndisp, "-o", out / "d.pfm",
                                     *(o.format(**names) for o in options)])
     assert code == 2

@@ -19,6 +19,7 @@ from sswjax.cli.download import add_download_command
 from sswjax.cli.evaluate import add_evaluate_command
 from sswjax.cli.match import add_match_command
 from sswjax.cli.params import add_params_command
+from sswjax.cli.rectify import add_rectify_command
 from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
 from sswjax.runtime.memory import MemoryEstimateError
 
@@ -38,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "default ~/.cache/sswjax/xla)")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for add in (add_match_command, add_demo_command, add_evaluate_command,
-                add_download_command, add_params_command):
+                add_download_command, add_params_command, add_rectify_command):
         add(commands)
     return parser
 

@@ -1,28 +1,52 @@
-"""``sswjax match`` options for the outputs beyond the map: depth, point cloud, KITTI's PNG.
+"""``sswjax match`` options for the rig and the outputs beyond the map: depth, point cloud,
+KITTI's PNG.
 
 ``--kitti-png`` writes KITTI's 16-bit PNG (disparity x 256); ``--depth`` the depth
 ``baseline * f / (d + doffs)`` (by its extension: ``.pfm``, ``.npy``, ``.tif``, ``.tiff``) and
-``--ply`` the point cloud of the pixels of finite positive depth, both from the rig of
-``--calib calib.txt`` or of ``--focal F --baseline B [--doffs D] [--principal CX CY]``
-(:mod:`sswjax.api.geometry`). :func:`geometry_writers` gives their writers, for the match
-command to write with its other outputs, all or nothing.
+``--ply`` the point cloud of the pixels of finite positive depth (by its extension: ``.ply``
+or ``.npz``), both from the rig of ``--calib calib.txt``, of ``--focal F --baseline B
+[--doffs D] [--principal CX CY]`` (:mod:`sswjax.api.geometry`), or of a raw camera's
+calibration, ``--rectify stereo.yaml`` (:mod:`sswjax.cli.rectify`: then in the raw left
+camera's frame and pixels). ``--depth-range ZMIN ZMAX`` sets the disparity range from the
+rig. :func:`geometry_writers` gives the writers, for the match command to write with its
+other outputs, all or nothing.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
 
-from sswjax.api.geometry import Calibration, check_calibration, depth_from_disparity, point_cloud
+from sswjax.api.auto_range import DisparityRange, range_for_depths
+from sswjax.api.geometry import (Calibration, Rectification, StereoCalibration, check_calibration,
+                                 depth_from_disparity, point_cloud)
+from sswjax.api.raw_frame import raw_depth, raw_point_cloud
 from sswjax.cli.common import Writer
 from sswjax.data.calibration import read_calibration
 from sswjax.data.io import write_float_map
-from sswjax.data.ply import write_ply
+from sswjax.data.ply import CLOUD_SUFFIXES, write_cloud
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["add_geometry_options", "calibration", "geometry_writers"]
+__all__ = ["CLOUD_FORMATS", "add_geometry_options", "alpha_option", "calibration", "depth_range",
+           "geometry_writers"]
+
+CLOUD_FORMATS = {"--ply": (CLOUD_SUFFIXES,
+                           ".ply (binary PLY point cloud) or .npz (xyz float32, rgb uint8)")}
+"""The endings ``--ply`` writes, for :func:`sswjax.cli.common.check_outputs`."""
+
+
+def alpha_option(text: str) -> float:
+    """``--alpha``: a number in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
 
 
 def add_geometry_options(parser: argparse.ArgumentParser) -> None:
@@ -36,13 +60,28 @@ def add_geometry_options(parser: argparse.ArgumentParser) -> None:
                              ".tif or .tiff (float32, inf where d + doffs <= 0); needs --calib "
                              "or --focal and --baseline")
     parser.add_argument("--ply", type=Path, metavar="CLOUD.ply",
-                        help="also write the pixels of finite positive depth as a binary PLY "
-                             "point cloud with the left image's colours")
+                        help="also write the cloud: the pixels of finite positive depth with the "
+                             "left image's colours, by its extension: .ply (binary PLY) or .npz "
+                             "(xyz float32, rgb uint8)")
+    parser.add_argument("--depth-range", type=float, nargs=2, metavar=("ZMIN", "ZMAX"),
+                        help="search the disparities of depths ZMIN..ZMAX (the rig's unit; ZMAX "
+                             "may be inf) instead of --ndisp and --min-disp; needs the rig")
     rig = parser.add_mutually_exclusive_group()
     rig.add_argument("--calib", type=Path, metavar="calib.txt",
                      help="Middlebury calibration: cam0 (focal length, principal point), "
                           "baseline, doffs")
     rig.add_argument("--focal", type=float, metavar="F", help="focal length in pixels")
+    rig.add_argument("--rectify", type=Path, nargs="+", metavar="STEREO_CALIB",
+                     help="raw images of a calibrated rig: rectify them first with this "
+                          "calibration (OpenCV YAML, XML or .npz; ROS's left.yaml right.yaml; "
+                          "KITTI's calib_cam_to_cam.txt; Middlebury's calib.txt); -o is then "
+                          "the rectified view's, --depth and --ply the raw left camera's")
+    parser.add_argument("--alpha", type=alpha_option, metavar="A",
+                        help="with --rectify: 0 crops to valid pixels, 1 keeps every raw pixel "
+                             "(default: the calibration's own rectification, else 0)")
+    parser.add_argument("--cameras", nargs=2, metavar=("LEFT", "RIGHT"),
+                        help="with a KITTI calib_cam_to_cam.txt: the two cameras (default 00 01 "
+                             "for gray images, 02 03 for colour)")
     parser.add_argument("--baseline", type=float, metavar="B",
                         help="with --focal: camera distance (depth comes out in its unit)")
     parser.add_argument("--doffs", type=float, metavar="D",
@@ -68,8 +107,10 @@ def calibration(args: argparse.Namespace) -> Calibration | None:
     if args.focal is None:
         if by_hand:
             raise ValueError(f"{options} {'needs' if one else 'need'} --focal")
-        if args.depth is not None or args.ply is not None:
-            raise ValueError("--depth and --ply need --calib FILE or --focal F --baseline B")
+        if getattr(args, "rectify", None) is None and (
+                args.depth is not None or args.ply is not None):
+            raise ValueError("--depth and --ply need --calib FILE, --focal F --baseline B or "
+                             "--rectify STEREO_CALIB")
         return None
     if args.baseline is None:
         raise ValueError("--focal needs --baseline")
@@ -78,27 +119,55 @@ def calibration(args: argparse.Namespace) -> Calibration | None:
                                          principal))
 
 
+def depth_range(args: argparse.Namespace, rig: Calibration | None, width: int
+                ) -> DisparityRange | None:
+    """The range of ``--depth-range`` for the rig (None without the option).
+
+    Raises ``ValueError`` (one line) without a rig, or on depths that are not ``0 < ZMIN <
+    ZMAX``."""
+    if getattr(args, "depth_range", None) is None:
+        return None
+    if rig is None:
+        raise ValueError("--depth-range needs the rig: --calib FILE, --focal F --baseline B or "
+                         "--rectify STEREO_CALIB")
+    low, high = args.depth_range
+    try:
+        return range_for_depths(rig, low, high, width=width)
+    except ValueError as exc:
+        raise ValueError(f"--depth-range {low:g} {high:g}: {exc}") from None
+
+
 def geometry_writers(args: argparse.Namespace, disparity: np.ndarray, left: np.ndarray,
-                     calib: Calibration | None) -> dict[Path, Writer]:
+                     calib: Calibration | None, *, stereo: StereoCalibration | None = None,
+                     rectification: Rectification | None = None) -> dict[Path, Writer]:
     """The writers of ``--kitti-png``, ``--depth`` and ``--ply`` (those asked for), for
     :func:`sswjax._files.atomic_outputs`.
 
     Parameters
     ----------
     disparity : float32 (H, W)
-    left : (H, W) or (H, W, C) image as read, for the point cloud's colours
+    left : (H, W) or (H, W, C) image as read, for the point cloud's colours (the raw left
+        image with ``stereo``)
     calib : Calibration, needed by ``--depth`` and ``--ply`` (:func:`calibration`)
+    stereo, rectification : with ``--rectify``: depth and cloud in the raw left camera's frame
+        and pixels (:func:`sswjax.api.rectify.raw_depth`); ``disparity`` is the rectified
+        view's, ``inf`` where it is to be left out
     """
     writers: dict[Path, Writer] = {}
     if args.kitti_png is not None:
         writers[args.kitti_png] = lambda tmp: write_scaled_disparity(tmp, disparity, scale=256,
                                                                      atomic=False)
     if args.depth is not None:
-        depth = depth_from_disparity(disparity, focal=calib.focal, baseline=calib.baseline,
-                                     doffs=calib.doffs)
+        if stereo is not None:
+            depth = raw_depth(disparity, stereo, rectification)
+        else:
+            depth = depth_from_disparity(disparity, focal=calib.focal, baseline=calib.baseline,
+                                         doffs=calib.doffs)
         writers[args.depth] = lambda tmp: write_float_map(tmp, depth, suffix=args.depth.suffix,
                                                           atomic=False)
     if args.ply is not None:
-        cloud = point_cloud(disparity, left, calib)
-        writers[args.ply] = lambda tmp: write_ply(tmp, *cloud, atomic=False)
+        cloud = (raw_point_cloud(disparity, left, stereo, rectification) if stereo is not None
+                 else point_cloud(disparity, left, calib))
+        writers[args.ply] = lambda tmp: write_cloud(tmp, *cloud, suffix=args.ply.suffix,
+                                                    atomic=False)
     return writers

@@ -9,34 +9,63 @@ not fit). The map is written in the format of its extension (PFM, NumPy, TIFF or
 16-bit PNG), and as asked a colour PNG, KITTI's PNG, depth, a point cloud
 (:mod:`sswjax.cli.geometry`), the confidence and the validity bits
 (:mod:`sswjax.cli.confidence`): all of them or none (:func:`sswjax._files.atomic_outputs`).
+
+The range: ``--ndisp N [--min-disp M]``, ``--depth-range ZMIN ZMAX`` (from the rig), or
+``--ndisp auto`` (:func:`sswjax.api.auto_range.estimate_range`, a note says what it chose).
+Raw images of a calibrated rig: ``--rectify stereo.yaml`` rectifies them first
+(:mod:`sswjax.cli.rectify`); the map, the confidence and the validity (bit 8: outside the
+rectified view) are the rectified view's, depth and cloud the raw left camera's.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from sswjax._files import atomic_outputs
+from sswjax.api.auto_range import estimate_range
 from sswjax.api.match import match, match_with_confidence
+from sswjax.api.rectify import rectification, rectified_calibration
+from sswjax.cli import folders
 from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, gigabytes
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
-from sswjax.cli.folders import image_size, match_folders
-from sswjax.cli.geometry import add_geometry_options, calibration, geometry_writers
+from sswjax.cli.folders import folder_pairs, image_size, match_folders
+from sswjax.cli.geometry import (CLOUD_FORMATS, add_geometry_options, calibration, depth_range,
+                                 geometry_writers)
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import (add_parameter_options, add_plan_options, params_from_args,
                                 plan_from_args)
+from sswjax.cli.rectify import outside_bits, rectified, stereo_rig
 from sswjax.config import Params
 from sswjax.data.io import read_image
 from sswjax.runtime.plan import ExecutionPlan
 
-__all__ = ["MATCH_OUTPUTS", "add_match_command", "guard_pair", "run_match"]
+__all__ = ["AUTO", "MATCH_OUTPUTS", "add_match_command", "guard_pair", "ndisp_option",
+           "run_match"]
 
 MATCH_OUTPUTS = {"-o": "output", "--png": "png", "--kitti-png": "kitti_png", "--depth": "depth",
                  "--ply": "ply", "--confidence": "confidence", "--validity": "validity"}
 """The options of ``sswjax match`` that name an output file -> their attribute in the args."""
+
+AUTO = "auto"
+"""``--ndisp auto``: estimate the range."""
+
+
+def ndisp_option(text: str) -> int | str:
+    """argparse type of ``--ndisp``: an integer, or ``auto``."""
+    if text.strip().lower() == AUTO:
+        return AUTO
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value: {text!r} (a count of disparities, "
+                                         "or auto)") from None
 
 
 def add_match_command(commands) -> None:
@@ -44,8 +73,9 @@ def add_match_command(commands) -> None:
     parser = commands.add_parser("match", help="disparity map of a rectified pair")
     parser.add_argument("left", type=Path, help="left (reference) image, or a folder of them")
     parser.add_argument("right", type=Path, help="right image, or a folder (pairs: same names)")
-    parser.add_argument("--ndisp", type=int, required=True,
-                        help="disparities searched: 0..N-1 (M..M+N-1 with --min-disp M)")
+    parser.add_argument("--ndisp", type=ndisp_option, metavar="N",
+                        help="disparities searched: 0..N-1 (M..M+N-1 with --min-disp M), or auto "
+                             "(estimated from a coarse pass); required unless --depth-range")
     parser.add_argument("-o", "--output", type=Path, required=True,
                         help="output disparity map, by its extension: .pfm, .npy, .tif or "
                              ".tiff (float32), or .png (16-bit, KITTI's scale: value = "
@@ -68,12 +98,24 @@ def add_match_command(commands) -> None:
     parser.set_defaults(run=run_match)
 
 
+def _check_range_options(args: argparse.Namespace) -> None:
+    """One of ``--ndisp N``, ``--ndisp auto`` and ``--depth-range``; ``--min-disp`` with a count."""
+    if args.depth_range is not None and args.ndisp is not None:
+        raise ValueError("--depth-range sets the range: give it or --ndisp, not both")
+    if args.depth_range is None and args.ndisp is None:
+        raise ValueError("the following arguments are required: --ndisp (or --depth-range)")
+    if args.min_disp and (args.depth_range is not None or args.ndisp == AUTO):
+        raise ValueError("--min-disp goes with --ndisp N: --depth-range and --ndisp auto set it")
+
+
 def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) -> ExecutionPlan:
     """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
     is for folders; the pair (sizes from the headers) must fit in memory, in strips if it must.
     Returns the plan to match with."""
     if args.resume:
         raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
+    if not isinstance(args.ndisp, int) or args.rectify is not None:
+        return plan  # the range or the size comes from the images: guarded once they are read
     left, right = image_size(args.left), image_size(args.right)
     if left[:2] == right[:2] and args.ndisp >= 1:  # else the matcher reports the problem
         return guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
@@ -81,40 +123,106 @@ def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) ->
     return plan
 
 
+def _folders(args: argparse.Namespace) -> int:
+    if wants_confidence(args):
+        raise ValueError("--confidence, --validity and --invalid-as-inf take one pair, "
+                         "not folders")
+    if args.ndisp == AUTO:
+        raise ValueError("--ndisp auto takes one pair: with folders give --ndisp N or "
+                         "--depth-range ZMIN ZMAX")
+    if args.rectify is not None and not hasattr(folders, "rectify_images"):
+        # until sswjax.cli.folders rectifies each pair (sswjax.cli.rectify.rectify_images)
+        raise ValueError("--rectify takes one pair for now: rectify the folders' pairs with "
+                         "sswjax rectify first")
+    if args.depth_range is not None and os.path.isdir(args.left) and os.path.isdir(args.right):
+        pairs = folder_pairs(args.left, args.right)
+        narrowest = min(pair.size[1] for pair in pairs)
+        rig = calibration(args)
+        if args.rectify is not None:
+            stereo = stereo_rig(args.rectify, pairs[0].size, cameras=args.cameras, note=False)
+            rect = rectification(stereo, alpha=args.alpha)
+            rig, narrowest = rectified_calibration(rect), (rect.size or stereo.image_size)[0]
+        args.min_disp, args.ndisp = depth_range(args, rig, narrowest)
+    return match_folders(args)
+
+
+def _search(args: argparse.Namespace, rig, left, right) -> tuple[int, int]:
+    """``(min_disp, ndisp)`` of the run: given, from ``--depth-range``, or estimated."""
+    width = left.shape[1]
+    if args.depth_range is not None:
+        found = depth_range(args, rig, width)
+        print(f"sswjax: note: depths {args.depth_range[0]:g}..{args.depth_range[1]:g} are "
+              f"disparities {found.min_disp}..{found.min_disp + found.ndisp - 1} "
+              f"(--min-disp {found.min_disp} --ndisp {found.ndisp})", file=sys.stderr)
+        return found
+    if args.ndisp == AUTO:
+        start = time.perf_counter()
+        found = estimate_range(left, right)
+        print(f"sswjax: note: --ndisp auto chose disparities {found.min_disp}.."
+              f"{found.min_disp + found.ndisp - 1} (--min-disp {found.min_disp} --ndisp "
+              f"{found.ndisp}; estimated in {time.perf_counter() - start:.1f} s)",
+              file=sys.stderr)
+        return found
+    return args.min_disp, args.ndisp
+
+
 def run_match(args: argparse.Namespace) -> int:
     """``sswjax match``: one pair, or two folders; returns the exit status (0)."""
+    _check_range_options(args)
     if os.path.isdir(args.left) or os.path.isdir(args.right):  # never raises
-        if wants_confidence(args):
-            raise ValueError("--confidence, --validity and --invalid-as-inf take one pair, "
-                             "not folders")
-        return match_folders(args)
+        return _folders(args)
     outputs = {option: getattr(args, name) for option, name in MATCH_OUTPUTS.items()
                if getattr(args, name) is not None}
-    check_outputs(outputs, {"LEFT": args.left, "RIGHT": args.right, "--calib": args.calib,
-                            "--params": args.params}, formats=OUTPUT_FORMATS)
+    inputs = {"LEFT": args.left, "RIGHT": args.right, "--calib": args.calib,
+              "--params": args.params}
+    inputs.update({f"--rectify {i + 1}": path for i, path in enumerate(args.rectify or [])})
+    check_outputs(outputs, inputs, formats={**OUTPUT_FORMATS, **CLOUD_FORMATS})
     calib = calibration(args)
     params, execution = params_from_args(args)
     plan = guard_pair(args, params, plan_from_args(args, execution))
+    stereo = None
+    if args.rectify is not None:
+        stereo = stereo_rig(args.rectify, image_size(args.left), cameras=args.cameras)
+    elif args.alpha is not None or args.cameras is not None:
+        raise ValueError(f"{'--alpha' if args.alpha is not None else '--cameras'} goes with "
+                         "--rectify STEREO_CALIB")
     with atomic_outputs(outputs.values()) as files:  # each destination proven writable here
-        left, right = read_image(args.left), read_image(args.right)
-        options = dict(min_disp=args.min_disp, params=params, plan=plan,
-                       check_memory=False)  # guard_pair checked it
+        raw_left, raw_right = read_image(args.left), read_image(args.right)
+        left, right, pair = raw_left, raw_right, None
+        if stereo is not None:
+            pair, calib = rectified(stereo, raw_left, raw_right, alpha=args.alpha)
+            left, right = pair.left, pair.right
+        min_disp, ndisp = _search(args, calib, left, right)
+        if not isinstance(args.ndisp, int) or stereo is not None:
+            plan = guard_memory([(*left.shape[:2], 1 if left.ndim == 2 else 3)], ndisp,
+                                params=params, plan=plan, limit_gb=args.max_memory,
+                                min_disp=min_disp)
+        options = {"min_disp": min_disp, "params": params, "plan": plan,
+                   "check_memory": False}  # guarded above
         start = time.perf_counter()
         writers = {}
         if wants_confidence(args):
-            matched = match_with_confidence(left, right, args.ndisp,
+            matched = match_with_confidence(left, right, ndisp,
                                             low_confidence=args.low_confidence, **options)
-            disparity = matched.disparity
+            disparity, validity = matched.disparity, matched.validity
+            if pair is not None:
+                validity = validity | outside_bits(pair, disparity)
+                matched = matched._replace(validity=validity)
             if args.invalid_as_inf:
-                disparity = invalid_as_inf(disparity, matched.validity)
+                disparity = invalid_as_inf(disparity, validity)
             writers.update(confidence_writers(matched, confidence=args.confidence,
                                               validity=args.validity))
         else:
-            disparity = match(left, right, args.ndisp, **options)
+            disparity = match(left, right, ndisp, **options)
         seconds = time.perf_counter() - start
-        writers.update(disparity_writers(disparity, args.output, args.png, args.ndisp,
-                                         min_disp=args.min_disp))
-        writers.update(geometry_writers(args, disparity, left, calib))
+        writers.update(disparity_writers(disparity, args.output, args.png, ndisp,
+                                         min_disp=min_disp))
+        if pair is None:
+            writers.update(geometry_writers(args, disparity, left, calib))
+        else:
+            kept = np.where(outside_bits(pair, disparity) > 0, np.float32(np.inf), disparity)
+            writers.update(geometry_writers(args, kept, raw_left, calib, stereo=stereo,
+                                            rectification=pair.rectification))
         for path, write in writers.items():
             files.write(path, write)
     written = ", ".join(str(path) for path in outputs.values())
