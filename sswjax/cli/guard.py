@@ -2,8 +2,10 @@
 
 Before any image is read, the largest pair's peak memory is estimated from the image headers
 (:mod:`sswjax.runtime.memory`) against ``--max-memory`` and the memory available: a pair
-that does not fit whole is matched in strips (a note on stderr says so), and one that does
-not fit at all is refused with the options that would make it fit (``--strip-rows``).
+that does not fit whole is matched in strips or tiles (a note on stderr says so), and one that
+does not fit at all is refused with the options that would make it fit (``--strip-rows``,
+``--tile``). With ``--workers N`` the bound is shared by the N workers of this machine; with
+``--scheduler`` it is each worker's (``--max-memory``, else the workers' own memory limit).
 """
 
 from __future__ import annotations
@@ -12,9 +14,14 @@ import sys
 from collections.abc import Iterable
 
 from sswjax.config import Params
-from sswjax.runtime.memory import (MemoryEstimateError, estimate_peak_bytes, format_gb,
-                                   plan_for_memory)
-from sswjax.runtime.plan import ExecutionPlan
+from sswjax.runtime.memory import (
+    MemoryEstimateError,
+    estimate_peak_bytes,
+    format_gb,
+    plan_for_memory,
+    worker_peak_bytes,
+)
+from sswjax.runtime.plan import ExecutionPlan, tiling_words
 
 __all__ = ["guard_memory", "refusal"]
 
@@ -35,14 +42,14 @@ def refusal(error: MemoryEstimateError, plan: ExecutionPlan) -> MemoryEstimateEr
     strips = error.strips
     if strips is None:
         advice = "a smaller ndisp or image (even strips of 16 rows do not fit)"
-        if error.bound == "the limit":
+        if error.bound.startswith("the limit"):
             advice += ", or a larger --max-memory"
     else:
-        options = f"--strip-rows {strips.strip_rows}"
+        options = f"--tile {strips.tile}" if strips.tile else f"--strip-rows {strips.strip_rows}"
         if strips.strip_overlap != plan.strip_overlap:
             options += f" --strip-overlap {strips.strip_overlap}"
-        advice = (f"match in strips with {options} (about {format_gb(error.strips_estimate)}), "
-                  "or a smaller ndisp or image")
+        advice = (f"match in {'tiles' if strips.tile else 'strips'} with {options} (about "
+                  f"{format_gb(error.strips_estimate)}), or a smaller ndisp or image")
     message = (f"a {width}x{height} pair with ndisp {ndisp} needs about "
                f"{format_gb(error.estimate)}, more than {error.bound} ({format_gb(error.limit)}): "
                f"{advice}")
@@ -52,10 +59,11 @@ def refusal(error: MemoryEstimateError, plan: ExecutionPlan) -> MemoryEstimateEr
 
 
 def guard_memory(sizes: Iterable[tuple[int, int, int]], ndisp: int, *, params: Params,
-                 plan: ExecutionPlan, limit_gb: float | None = None,
-                 min_disp: int = 0) -> ExecutionPlan:
-    """The plan with which the largest of ``sizes`` fits: ``plan`` itself, or strips chosen
-    when the whole pair does not fit (a note on stderr says so).
+                 plan: ExecutionPlan, limit_gb: float | None = None, min_disp: int = 0,
+                 share: int = 1, local: bool = True,
+                 worker_tiles: bool = False) -> ExecutionPlan:
+    """The plan with which the largest of ``sizes`` fits: ``plan`` itself, or strips or tiles
+    chosen when the whole pair does not fit (a note on stderr says so).
 
     Parameters
     ----------
@@ -67,6 +75,10 @@ def guard_memory(sizes: Iterable[tuple[int, int, int]], ndisp: int, *, params: P
         The plan asked for (strips, buckets, disparity blocks).
     limit_gb : float, optional
         ``--max-memory`` in GB (1e9 bytes); the available memory applies as well.
+    share, local, worker_tiles
+        As :func:`sswjax.runtime.memory.plan_for_memory`: the workers sharing this machine's
+        bound, workers elsewhere (``local=False``: ``limit_gb`` is each one's), workers that
+        hold one tile's window each.
 
     Returns
     -------
@@ -79,18 +91,20 @@ def guard_memory(sizes: Iterable[tuple[int, int, int]], ndisp: int, *, params: P
     """
     pad = max(-int(min_disp), 0)
     shapes = sorted({(h, w + pad, c) for h, w, c in sizes})
-    largest = max(shapes, key=lambda s: estimate_peak_bytes(s[0], s[1], ndisp, params=params,
-                                                            plan=plan, channels=s[2]))
+    estimate = worker_peak_bytes if worker_tiles else estimate_peak_bytes
+    largest = max(shapes, key=lambda s: estimate(s[0], s[1], ndisp, params=params, plan=plan,
+                                                 channels=s[2]))
     height, width, channels = largest
     limit = None if limit_gb is None else limit_gb * 1e9
     try:
         fitted = plan_for_memory(height, width, ndisp, params=params, plan=plan,
-                                 channels=channels, limit=limit)
+                                 channels=channels, limit=limit, share=share, local=local,
+                                 worker_tiles=worker_tiles)
     except MemoryEstimateError as error:
         raise refusal(error, plan) from None
-    if fitted.strip_rows != plan.strip_rows:
-        estimate = estimate_peak_bytes(height, width, ndisp, params=params, plan=fitted,
-                                       channels=channels)
-        print(f"sswjax: note: matching in strips of {fitted.strip_rows} rows to fit in memory "
-              f"(about {format_gb(estimate)})", file=sys.stderr)
+    if (fitted.strip_rows, fitted.tile) != (plan.strip_rows, plan.tile):
+        peak = estimate(height, width, ndisp, params=params, plan=fitted, channels=channels)
+        each = " for each worker" if share > 1 or worker_tiles or not local else ""
+        print(f"sswjax: note: matching in {tiling_words(fitted)} to fit in memory (about "
+              f"{format_gb(peak)}{each})", file=sys.stderr)
     return fitted

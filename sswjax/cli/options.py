@@ -9,8 +9,10 @@ parses (numbers, ``true``, ``false``, ``null``), else as text. The result is val
 (:data:`sswjax.config.SLOTS`, :func:`sswjax.config.kinds`, :data:`sswjax.config.PRESETS`).
 
 Execution plan: ``--strip-rows``, ``--strip-overlap``, ``--disparity-chunk`` override what an
-old flat parameter file holds of them (:func:`sswjax.config.read_params_file`), into the
-:class:`sswjax.ExecutionPlan` of the run.
+old flat parameter file holds of them (:func:`sswjax.config.read_params_file`), and ``--tile``
+(which replaces a file's strips), into the :class:`sswjax.ExecutionPlan` of the run;
+``--workers N`` and ``--scheduler ADDR`` say where it runs (a Dask cluster,
+:mod:`sswjax.cli.distributed`).
 """
 
 from __future__ import annotations
@@ -20,8 +22,18 @@ import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from sswjax.config import (DEFAULT_PRESET, PRESETS, SLOTS, ConfigError, Params, check_params,
-                           default_params, kinds, preset, read_params_file)
+from sswjax.config import (
+    DEFAULT_PRESET,
+    PRESETS,
+    SLOTS,
+    ConfigError,
+    Params,
+    check_params,
+    default_params,
+    kinds,
+    preset,
+    read_params_file,
+)
 from sswjax.config.fields import option_fields
 from sswjax.config.legacy import EXECUTION_DEFAULTS
 from sswjax.config.validate import check_value
@@ -202,8 +214,20 @@ def _count(text: str) -> int:
     return value
 
 
+def _positive(text: str) -> int:
+    """argparse type of ``--workers``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
 def add_plan_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--strip-rows N``, ``--strip-overlap N`` and ``--disparity-chunk K``."""
+    """Add ``--strip-rows N``, ``--strip-overlap N``, ``--disparity-chunk K``, ``--tile SIZE``,
+    ``--workers N`` and ``--scheduler ADDR``."""
     defaults = ExecutionPlan()
     parser.add_argument("--strip-rows", type=_count, metavar="N",
                         help="match in horizontal strips of N rows: memory follows the strip "
@@ -215,6 +239,21 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                         help="build and fold the cost volume K disparities at a time, 0 for "
                              f"the whole volume at once; the same map (default "
                              f"{defaults.disparity_chunk})")
+    parser.add_argument("--tile", type=_count, metavar="SIZE",
+                        help="match in tiles of SIZE x SIZE pixels, each seen with the collar "
+                             "(--strip-overlap) and ndisp more columns either side: memory "
+                             "follows the tile; with --workers or --scheduler the tiles of one "
+                             "pair are the cluster's tasks (default: tiles or strips only if "
+                             "the pair does not fit)")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=_positive, metavar="N",
+                       help="run on a Dask cluster of N single-threaded worker processes "
+                            "started on this machine: the pairs of two folders, or the tiles "
+                            'of one pair, are its tasks (pip install "sswjax[distributed]")')
+    where.add_argument("--scheduler", metavar="ADDR",
+                       help="run on the running Dask cluster whose scheduler is ADDR (e.g. "
+                            "tcp://host:8786; dask scheduler / dask worker, dask-jobqueue): "
+                            "inputs and outputs on storage its workers share")
 
 
 def plan_from_args(args: argparse.Namespace, execution: Mapping, *,
@@ -240,4 +279,10 @@ def plan_from_args(args: argparse.Namespace, execution: Mapping, *,
         given = getattr(args, name, None)
         if given is not None:
             values[name] = given
+    tile = getattr(args, "tile", None)
+    if tile:
+        if getattr(args, "strip_rows", None):
+            raise ValueError(f"--tile {tile} and --strip-rows {args.strip_rows} both cut the "
+                             "pair: give one")
+        values.update(tile=tile, strip_rows=0)  # the command line's tiles replace a file's strips
     return check_plan(ExecutionPlan(**values, buckets=buckets))

@@ -1,9 +1,9 @@
 """How a call runs, never inside the jitted pytree: execution plans and what chooses them.
 
 =================  ==============================================================================
-``plan``           ``ExecutionPlan`` (strips, buckets, disparity blocks) and ``execute``
+``plan``           ``ExecutionPlan`` (tiles or strips, buckets, disparity blocks) and ``execute``
 ``buckets``        shape buckets: sizes rounded up so that pairs share a compiled graph
-``strips``         a pair matched in overlapping row strips, stitched
+``tiles``          a pair matched in overlapping tiles (row strips: one column of them), stitched
 ``memory``         the memory model: an estimate per call, and the plan that fits (or a refusal)
 ``devices``        the 1-D device mesh a batch is split over
 ``compilation``    XLA's persistent compilation cache

@@ -12,12 +12,13 @@ its table is in ``docs/speed-and-memory.md``. The terms:
     1: Python, NumPy, JAX and XLA's compiler and runtime.
 ``image``
     ``H * W * C`` of the whole (bucketed) image: the pair as read, its float32 conversion, the
-    device copies and the output map, which strips do not shrink.
+    device copies and the output map, which tiles do not shrink (a worker that matches one
+    tile of a cluster run holds only its window: :func:`worker_peak_bytes`).
 ``window``
-    ``h * W`` of what one call of the graph sees (``h`` = the strip's rows plus its overlap, or
-    ``H``): features, census codes, winners, refinement.
+    ``h * w`` of what one call of the graph sees (the window of a tile or strip, its collar
+    included, or the whole image): features, census codes, winners, refinement.
 ``slic``
-    ``h * W`` again when SLIC runs (``params.segments`` is set).
+    ``h * w`` again when SLIC runs (``params.segments`` is set).
 ``blocks``
     ``h * W * min(K, D)`` with ``K = plan.disparity_chunk``: the blocks of cost slices in flight when
     the paper's selection folds them as they come.
@@ -32,7 +33,7 @@ its table is in ``docs/speed-and-memory.md``. The terms:
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
 
-``h``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
+``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
 measured size the estimate is above the measured peak (by at most :data:`STATED_RATIO`). The
 model describes the CPU backend with the ``ssw`` aggregator; other aggregators are estimated as
@@ -47,13 +48,16 @@ from pathlib import Path
 
 from sswjax.config import Params, default_params
 from sswjax.runtime.buckets import bucket_shape
-from sswjax.runtime.plan import ExecutionPlan
+from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align, tiling_words
+from sswjax.runtime.tiles import tilings_by_work, window_shape
 
-__all__ = ["MemoryEstimateError", "STRIP_HEIGHTS", "available_bytes", "check_memory",
-           "estimate_peak_bytes", "format_gb", "memory_terms", "plan_for_memory"]
+__all__ = ["STRIP_HEIGHTS", "MemoryEstimateError", "available_bytes", "check_memory",
+           "estimate_peak_bytes", "format_gb", "memory_terms", "plan_for_memory",
+           "worker_peak_bytes"]
 
 STRIP_HEIGHTS = (512, 384, 256, 192, 128, 96, 64, 48, 32, 16)
-"""Strip heights (rows) that :func:`plan_for_memory` tries, tallest first."""
+"""Strip heights (rows) that :func:`plan_for_memory` tries, besides the square tiles of
+:data:`~sswjax.runtime.tiles.TILE_SIZES`."""
 
 
 class MemoryEstimateError(MemoryError):
@@ -71,8 +75,8 @@ class MemoryEstimateError(MemoryError):
     shape : (int, int, int)
         The pair's width, height and ndisp, as estimated.
     strips : ExecutionPlan or None
-        The tallest strips that would fit, with their estimate in :attr:`strips_estimate`;
-        None when even the lowest do not.
+        The strips or tiles that would fit (:func:`plan_for_memory`'s choice), with their
+        estimate in :attr:`strips_estimate`; None when even the smallest do not.
     """
 
     def __init__(self, message: str, *, estimate: int, limit: int, bound: str = "the limit",
@@ -113,30 +117,19 @@ to 0.48 GB) and for what the calling process holds besides."""
 
 STATED_RATIO = 1.6
 """Estimates are between 1 and this many times the measured peak (``docs/speed-and-memory.md``,
-tests), except
-where the compile floor decides: compiling may take less memory for some small shapes than
-for the tiny one measured, and the estimate is then a larger multiple of the peak."""
+tests), except where the compile floor decides: compiling may take less memory for some small
+shapes than for the tiny one measured, and the estimate is then a larger multiple of the peak."""
 
 
 def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None = None,
                  plan: ExecutionPlan | None = None, channels: int = 3) -> dict[str, float]:
-    """The model's terms for one call (see the module's docstring), in elements.
+    """The model's terms for one call (see the module's docstring), in elements: a dict
+    str -> float, keys those of :data:`COEFFICIENTS`.
 
-    Parameters
-    ----------
-    height, width, ndisp : int
-        The pair's size and disparity count, as given to :func:`sswjax.match`.
-    params : Params, optional
-        Default: the ``accurate`` preset (:func:`sswjax.config.default_params`).
-    plan : ExecutionPlan, optional
-        Strips, buckets (the terms then use the padded shape) and disparity blocks; default
-        ``ExecutionPlan()``.
-    channels : int
-        1 (gray) or 3 (colour) channels matched.
-
-    Returns
-    -------
-    dict str -> float, keys those of :data:`COEFFICIENTS`.
+    ``height, width, ndisp`` (int): the pair's size and disparity count, as given to
+    :func:`sswjax.match`; ``params`` default the ``accurate`` preset; ``plan`` (default
+    ``ExecutionPlan()``): tiles or strips, buckets (the terms then use the padded shape) and
+    disparity blocks; ``channels``: 1 (gray) or 3 (colour) channels matched.
 
     Examples
     --------
@@ -147,11 +140,8 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
     plan = ExecutionPlan() if plan is None else plan
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
-    rows = height
-    window = plan.strip_rows + 2 * plan.strip_overlap
-    if plan.strip_rows > 0 and window < height:
-        rows = window
-    plane = float(rows * width)
+    rows, cols = window_shape(height, width, plan_tiling(plan, ndisp, align=pyramid_align(params)))
+    plane = float(rows * cols)
     levels = 0 if params.coarse is None else params.coarse.levels
     # Coarse-to-fine: the images and one plane at full size, the volumes on the halved pair.
     matched = plane / 4 ** levels
@@ -180,21 +170,9 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params: Params |
     Includes the process itself (Python, JAX, the compiler): it is what the process's peak
     resident memory would be if it did nothing else.
 
-    Parameters
-    ----------
-    height, width, ndisp : int
-        Image size and disparity count.
-    params : Params, optional
-        Default: the ``accurate`` preset; the optimiser (its paths and storage), coarse-to-fine
-        and the superpixels change the estimate.
-    plan : ExecutionPlan, optional
-        Strips, buckets and disparity blocks change it too.
-    channels : int
-        Channels matched: 1 (gray) or 3 (colour).
-
-    Returns
-    -------
-    int, bytes
+    Parameters as :func:`memory_terms`: the optimiser (its paths and storage),
+    coarse-to-fine, the superpixels, tiles or strips, buckets and disparity blocks change the
+    estimate. Returns int bytes.
 
     Examples
     --------
@@ -232,16 +210,9 @@ def _cgroup_free(root: Path) -> int | None:
 
 def available_bytes(*, meminfo: str | os.PathLike = "/proc/meminfo",
                     cgroup: str | os.PathLike = "/sys/fs/cgroup") -> int | None:
-    """Memory a new allocation can get: ``MemAvailable`` and, if lower, the cgroup's free room.
-
-    Parameters
-    ----------
-    meminfo, cgroup : path
-        Where to read them (for tests).
-
-    Returns
-    -------
-    int bytes, or None when neither can be read (not Linux).
+    """Memory a new allocation can get: ``MemAvailable`` and, if lower, the cgroup's free room
+    (``meminfo`` and ``cgroup``: where to read them, for tests); int bytes, or None when
+    neither can be read (not Linux).
 
     Examples
     --------
@@ -271,22 +242,36 @@ def format_gb(value: float) -> str:
     return f"{value / 1e9:.2f} GB"
 
 
+def worker_peak_bytes(height: int, width: int, ndisp: int, *, params: Params | None = None,
+                      plan: ExecutionPlan | None = None, channels: int = 3) -> int:
+    """The estimate of a process that matches one tile of ``plan`` holding only its window
+    (a worker of :func:`sswjax.cluster.match_tiles`): the window matched as a whole pair.
+
+    Parameters and returns as :func:`estimate_peak_bytes`; without tiles, the whole pair's.
+
+    Examples
+    --------
+    >>> whole = estimate_peak_bytes(4000, 6000, 256, plan=ExecutionPlan(tile=512))
+    >>> worker_peak_bytes(4000, 6000, 256, plan=ExecutionPlan(tile=512)) < whole
+    True
+    """
+    plan = ExecutionPlan() if plan is None else plan
+    if plan.buckets is not None:
+        height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
+    align = pyramid_align(default_params() if params is None else params)
+    rows, cols = window_shape(height, width, plan_tiling(plan, ndisp, align=align))
+    return estimate_peak_bytes(rows, cols, ndisp, params=params, channels=channels,
+                               plan=plan._replace(strip_rows=0, tile=0, buckets=None))
+
+
 def check_memory(height: int, width: int, ndisp: int, *, params: Params | None = None,
                  plan: ExecutionPlan | None = None, channels: int = 3,
                  limit: float | None = None) -> int:
     """Raise :class:`MemoryEstimateError` if one call would not fit; return the estimate.
 
-    Parameters
-    ----------
-    height, width, ndisp, params, plan, channels
-        As :func:`estimate_peak_bytes`.
-    limit : float, optional
-        Bytes allowed; the available memory (:func:`available_bytes`) applies as well.
-        Without either (not Linux, no limit) nothing is checked.
-
-    Returns
-    -------
-    int, the estimate in bytes.
+    ``height, width, ndisp, params, plan, channels`` as :func:`estimate_peak_bytes`; ``limit``
+    (float, optional): bytes allowed; the available memory (:func:`available_bytes`) applies
+    as well. Without either (not Linux, no limit) nothing is checked.
 
     Examples
     --------
@@ -295,24 +280,36 @@ def check_memory(height: int, width: int, ndisp: int, *, params: Params | None =
     ...
     sswjax.runtime.memory.MemoryEstimateError: ...
     """
-    return _assess((height, width, ndisp), params, plan, channels, limit, choose=False)[0]
+    return _assess((height, width, ndisp), params, plan, channels, _bound(limit), choose=False)[0]
 
 
 def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | None = None,
                     plan: ExecutionPlan | None = None, channels: int = 3,
-                    limit: float | None = None) -> ExecutionPlan:
-    """The plan with which one call fits in memory: strips chosen when they must be.
+                    limit: float | None = None, share: int = 1, local: bool = True,
+                    worker_tiles: bool = False) -> ExecutionPlan:
+    """The plan with which one call fits in memory: strips or tiles chosen when they must be.
 
-    With ``plan.strip_rows == 0`` (the whole image) and an estimate above the bound, the pair
-    is matched in the tallest strips of :data:`STRIP_HEIGHTS` that fit (the overlap capped at
-    the strip's height); with explicit strips, or when the whole image fits, the plan comes
-    back unchanged. Nothing fits: :class:`MemoryEstimateError`, as :func:`check_memory`
-    raises it.
+    With a plan of neither (the whole image) and an estimate above the bound, the pair is cut
+    in the strips of :data:`STRIP_HEIGHTS` or the square tiles of
+    :data:`~sswjax.runtime.tiles.TILE_SIZES` that fit and compute the fewest pixels (windows
+    times their area: the collars and the ``ndisp`` columns either side of a tile are computed
+    again; the collar is capped at the strip's height); with explicit strips or tiles, or when
+    the whole image fits, the plan comes back unchanged. Nothing fits:
+    :class:`MemoryEstimateError`, as :func:`check_memory` raises it.
 
     Parameters
     ----------
     height, width, ndisp, params, plan, channels, limit
         As :func:`check_memory`.
+    share : int >= 1
+        Processes that match at the same time within the bound (the workers of a cluster
+        on this machine): each gets ``1 / share`` of it.
+    local : bool
+        False: the processes run on other machines, the memory available here is no bound
+        (only ``limit``, per process).
+    worker_tiles : bool
+        Each tile is matched by a process that holds only its window
+        (:func:`worker_peak_bytes`), instead of one process holding the pair.
 
     Returns
     -------
@@ -325,59 +322,74 @@ def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | Non
     >>> 0 < fitted.strip_rows < 1988
     True
     """
-    return _assess((height, width, ndisp), params, plan, channels, limit, choose=True)[1]
+    if isinstance(share, bool) or not isinstance(share, int) or share < 1:
+        raise ValueError(f"share must be an integer >= 1, got {share!r}")
+    bound = _bound(limit, share=share, local=local)
+    return _assess((height, width, ndisp), params, plan, channels, bound, choose=True,
+                   worker_tiles=worker_tiles)[1]
 
 
-def _assess(shape, params, plan, channels, limit, *, choose: bool) -> tuple[int, ExecutionPlan]:
-    """The estimate of a call and the plan it runs with: ``plan`` when it fits, the tallest
-    strips that do when ``choose`` and the plan has none, else the refusal."""
+def _assess(shape, params, plan, channels, bound, *, choose: bool,
+            worker_tiles: bool = False) -> tuple[int, ExecutionPlan]:
+    """The estimate of a call and the plan it runs with: ``plan`` when it fits, the tiling
+    that does when ``choose`` and the plan has none, else the refusal."""
     params = default_params() if params is None else params
     plan = ExecutionPlan() if plan is None else plan
-    estimate = estimate_peak_bytes(*shape, params=params, plan=plan, channels=channels)
-    bound, what = _bound(limit)
-    if bound is None or estimate <= bound:
-        return estimate, plan
-    strips = _tallest_strips(shape, params, plan, channels, bound)
-    if choose and strips is not None and not plan.strip_rows:
-        return estimate, strips
-    raise _refusal(shape, estimate, bound, what, params, channels, strips)
+    estimator = worker_peak_bytes if worker_tiles else estimate_peak_bytes
+
+    def estimate(trial):
+        return estimator(*shape, params=params, plan=trial, channels=channels)
+
+    estimated = estimate(plan)
+    limit, what = bound
+    if limit is None or estimated <= limit:
+        return estimated, plan
+    fitting = _cheapest_tiling(shape, plan, limit, estimate)
+    if choose and fitting is not None and not plan.strip_rows and not plan.tile:
+        return estimated, fitting
+    raise _refusal(shape, estimated, limit, what, fitting,
+                   None if fitting is None else estimate(fitting))
 
 
-def _bound(limit):
-    """The tighter of ``limit`` and the available memory, and which it is (None if neither)."""
-    free = available_bytes()
+def _bound(limit, *, share: int = 1, local: bool = True):
+    """The tighter of ``limit`` and the available memory (when ``local``), divided among
+    ``share`` processes, and its words (``(None, None)`` if there is neither)."""
+    free = available_bytes() if local else None
     bounds = [(b, what) for b, what in ((limit, "the limit"), (free, "the available memory"))
               if b is not None]
-    return min(bounds) if bounds else (None, None)
+    if not bounds:
+        return None, None
+    bound, what = min(bounds)
+    return bound / share, what if share == 1 else f"{what} shared by {share} workers"
 
 
-def _tallest_strips(shape, params, plan, channels, bound):
-    """``plan`` with the tallest strips of :data:`STRIP_HEIGHTS` (lower than the current
-    ones, if any, and than the image) whose estimate fits under ``bound``; None if none."""
+def _cheapest_tiling(shape, plan, bound, estimate):
+    """The strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` (of the
+    bucketed shape) that compute the fewest pixels under ``bound``; None if none fits."""
     height, width, ndisp = shape
-    for rows in STRIP_HEIGHTS:
-        if rows >= height or (plan.strip_rows and rows >= plan.strip_rows):
-            continue
-        trial = plan._replace(strip_rows=rows, strip_overlap=min(plan.strip_overlap, rows))
-        if estimate_peak_bytes(height, width, ndisp, params=params, plan=trial,
-                               channels=channels) <= bound:
+    if plan.buckets is not None:
+        height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
+    for tiling in tilings_by_work(height, width, lead=ndisp, overlap=plan.strip_overlap,
+                                  strip_heights=STRIP_HEIGHTS):
+        trial = plan._replace(strip_rows=0 if tiling.cols else tiling.rows,
+                              tile=tiling.rows if tiling.cols else 0, strip_overlap=tiling.overlap)
+        if estimate(trial) <= bound:
             return trial
     return None
 
 
-def _refusal(shape, estimate, bound, what, params, channels, strips) -> MemoryEstimateError:
-    """The one-line refusal, with what to change in the API's terms: ``strips`` (the tallest
-    that fit, from :func:`_tallest_strips`), else a smaller ndisp or image."""
+def _refusal(shape, estimate, bound, what, fitting, fitted) -> MemoryEstimateError:
+    """The one-line refusal, with what to change in the API's terms: ``fitting`` (the strips
+    or tiles that fit, estimated at ``fitted``), else a smaller ndisp or image."""
     height, width, ndisp = shape
-    fitted = None
-    if strips is None:
+    if fitting is None:
         advice = "a smaller ndisp or image (even strips of 16 rows do not fit), or a larger limit"
     else:
-        fitted = estimate_peak_bytes(height, width, ndisp, params=params, plan=strips,
-                                     channels=channels)
-        advice = (f"match in strips with plan=sswjax.ExecutionPlan(strip_rows="
-                  f"{strips.strip_rows}) (about {format_gb(fitted)}), or a smaller ndisp or image")
+        field = f"tile={fitting.tile}" if fitting.tile else f"strip_rows={fitting.strip_rows}"
+        advice = (f"match in {tiling_words(fitting).split(' of ')[0]} with "
+                  f"plan=sswjax.ExecutionPlan({field}) (about {format_gb(fitted)}), or a "
+                  "smaller ndisp or image")
     return MemoryEstimateError(
         f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
         f"{what} ({format_gb(bound)}): {advice}", estimate=estimate, limit=int(bound),
-        bound=what, shape=(width, height, ndisp), strips=strips, strips_estimate=fitted)
+        bound=what, shape=(width, height, ndisp), strips=fitting, strips_estimate=fitted)

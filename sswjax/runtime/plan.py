@@ -1,10 +1,10 @@
 """How a call runs, apart from what it computes: the execution plan.
 
 An :class:`ExecutionPlan` is passed beside the parameters, never inside the jitted pytree:
-row strips (memory follows the strip), shape buckets (pairs of nearby sizes share a compiled
-graph) and the disparity blocks of the volume's scans. :func:`execute` runs a jitted graph of
-:mod:`sswjax.graph` under a plan. The memory guard (:mod:`sswjax.runtime.memory`) chooses or
-refuses plans.
+tiles or row strips (memory follows the tile, :mod:`sswjax.runtime.tiles`), shape buckets
+(pairs of nearby sizes share a compiled graph) and the disparity blocks of the volume's scans.
+:func:`execute` runs a jitted graph of :mod:`sswjax.graph` under a plan. The memory guard
+(:mod:`sswjax.runtime.memory`) chooses or refuses plans.
 
 Array conventions: images float32 ``(H, W, C)`` NumPy arrays, C in {1, 3}, values in [0, 1];
 maps ``(H, W)`` NumPy arrays.
@@ -22,11 +22,13 @@ import numpy as np
 from sswjax.config import Params
 from sswjax.graph import DEFAULT_CHUNK
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
-from sswjax.runtime.strips import in_strips
+from sswjax.runtime.tiles import Tiling, in_tiles
 
-__all__ = ["ExecutionPlan", "check_plan", "execute", "split_settings"]
+__all__ = ["ExecutionPlan", "bind_graph", "check_plan", "execute", "graph_call", "plan_tiling",
+           "pyramid_align", "split_settings", "tiling_words"]
 
-_BOUNDS = {"strip_rows": 1_000_000, "strip_overlap": 10_000, "disparity_chunk": 100_000}
+_BOUNDS = {"strip_rows": 1_000_000, "strip_overlap": 10_000, "disparity_chunk": 100_000,
+           "tile": 1_000_000}
 
 
 class ExecutionPlan(NamedTuple):
@@ -35,24 +37,36 @@ class ExecutionPlan(NamedTuple):
     Attributes
     ----------
     strip_rows : int
-        ``R > 0``: match the pair in horizontal strips of ``R`` rows, each seen with
-        ``strip_overlap`` more rows above and below (:func:`~sswjax.runtime.strips.in_strips`):
-        memory follows the strip, not the image. 0 (default): the whole image at once. The
-        memory guard chooses strips when the whole pair does not fit.
+        ``R > 0``: match the pair in horizontal strips of ``R`` rows (the tiling of one
+        column, :mod:`sswjax.runtime.tiles`), each seen with ``strip_overlap`` more rows above
+        and below: memory follows the strip, not the image. 0 (default): the whole image at
+        once. The memory guard chooses strips or tiles when the whole pair does not fit.
     strip_overlap : int
-        Rows of context above and below each strip (default 32).
+        The collar (default 32): rows of context above and below each strip or tile, and
+        columns left and right of each tile (besides the ``ndisp`` columns on its left).
     buckets : ShapeBuckets or None
         Pad the pair to a bucketed shape so that pairs of nearby sizes reuse one compilation
         (results near the bottom and right borders can change slightly); None: exact shape.
     disparity_chunk : int
         K > 0 (default 4): the volume is built and folded K disparities at a time, memory for
         about ``3 K`` slices; 0: the whole volume at once. The same result either way.
+    tile : int
+        ``S > 0``: match the pair in tiles of ``S x S`` pixels, each seen with the collar
+        around it and ``ndisp`` more columns on either side (what its disparities and the
+        left-right check reach; rows or columns the tile covers whole are not cut); not with
+        ``strip_rows``. 0 (default): no tiles.
+    engine : object or None
+        Where the windows run: None (default) in this process, one after the other; an engine
+        such as :class:`sswjax.cluster.DaskEngine` runs them elsewhere (its ``execute`` has
+        the signature of :func:`execute`). Never changes the maps.
     """
 
     strip_rows: int = 0
     strip_overlap: int = 32
     buckets: ShapeBuckets | None = None
     disparity_chunk: int = DEFAULT_CHUNK
+    tile: int = 0
+    engine: object = None
 
 
 def check_plan(plan) -> ExecutionPlan:
@@ -68,6 +82,12 @@ def check_plan(plan) -> ExecutionPlan:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
                 or not 0 <= value <= high:
             raise ValueError(f"plan.{name} must be an integer in [0, {high}], got {value!r}")
+    if plan.engine is not None and not callable(getattr(plan.engine, "execute", None)):
+        raise TypeError(f"plan.engine must be None or have an execute method (a "
+                        f"sswjax.cluster.DaskEngine), got {type(plan.engine).__name__}")
+    if plan.tile and plan.strip_rows:
+        raise ValueError(f"plan.tile ({plan.tile}) and plan.strip_rows ({plan.strip_rows}) are "
+                         "both set: give tile=S for S x S tiles or strip_rows=R for strips")
     if plan.buckets is not None:
         if not isinstance(plan.buckets, ShapeBuckets):
             raise TypeError(f"plan.buckets must be a sswjax.ShapeBuckets, got "
@@ -96,10 +116,72 @@ def split_settings(params, changes: Mapping) -> tuple[Params, ExecutionPlan]:
     return params.replace(**rest), check_plan(ExecutionPlan(**execution))
 
 
+def plan_tiling(plan: ExecutionPlan, ndisp: int, *, align: int = 1) -> Tiling:
+    """The tiling of ``plan`` for a search of ``ndisp`` disparities: ``tile x tile`` cores,
+    or strips of ``strip_rows`` full rows, with the plan's collar.
+
+    >>> plan_tiling(ExecutionPlan(tile=256), 64)
+    Tiling(rows=256, cols=256, overlap=32, lead=64, align=1)
+    """
+    if plan.tile:
+        return Tiling(plan.tile, plan.tile, plan.strip_overlap, int(ndisp), align)
+    return Tiling(plan.strip_rows, 0, plan.strip_overlap, int(ndisp), align)
+
+
+def tiling_words(plan: ExecutionPlan) -> str:
+    """How ``plan`` cuts a pair, in words.
+
+    >>> tiling_words(ExecutionPlan(tile=512)), tiling_words(ExecutionPlan(strip_rows=64))
+    ('tiles of 512 x 512', 'strips of 64 rows')
+    """
+    if plan.tile:
+        return f"tiles of {plan.tile} x {plan.tile}"
+    return f"strips of {plan.strip_rows} rows" if plan.strip_rows else "the whole image"
+
+
+def pyramid_align(params: Params) -> int:
+    """The factor window origins are rounded to: ``2 ** levels`` of coarse-to-fine, else 1."""
+    return 1 if params.coarse is None else 2 ** params.coarse.levels
+
+
+def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionPlan
+               ) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The pair padded to the plan's bucket, and the graph's keyword arguments besides the
+    parameters: ``ndisp`` (bucketed), ``chunk`` and, with buckets, ``valid_ndisp`` (an int).
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C)
+    ndisp : int
+    plan : ExecutionPlan
+
+    Returns
+    -------
+    (float32 (H', W', C), float32 (H', W', C), dict)
+    """
+    if plan.buckets is None:
+        return left, right, {"ndisp": int(ndisp), "chunk": plan.disparity_chunk}
+    padded_h, padded_w, padded_ndisp = bucket_shape(left.shape[0], left.shape[1], int(ndisp),
+                                                    plan.buckets)
+    left, right = pad_to_bucket(left, right, padded_h, padded_w)
+    return left, right, {"ndisp": padded_ndisp, "valid_ndisp": int(ndisp),
+                         "chunk": plan.disparity_chunk}
+
+
+def bind_graph(graph, params: Params, call: dict):
+    """``graph`` with its parameters and the keyword arguments of :func:`graph_call` bound
+    (``valid_ndisp`` as the traced int32 scalar the graph takes)."""
+    call = dict(call)
+    if "valid_ndisp" in call:
+        call["valid_ndisp"] = jnp.int32(call["valid_ndisp"])
+    return functools.partial(graph, params=params, **call)
+
+
 def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
             plan: ExecutionPlan):
     """``graph(left, right, params=, ndisp=, chunk=[, valid_ndisp=])`` under ``plan``: padded
-    to its bucket, in strips, cropped back.
+    to its bucket, in tiles or strips (:func:`~sswjax.runtime.tiles.in_tiles`), cropped back;
+    or by the plan's engine.
 
     Parameters
     ----------
@@ -115,16 +197,13 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     -------
     numpy.ndarray (H, W), or the same NamedTuple of them
     """
+    if plan.engine is not None:
+        return plan.engine.execute(graph, left, right, params=params, ndisp=ndisp,
+                                   plan=plan._replace(engine=None))
     height, width = left.shape[:2]
-    if plan.buckets is None:
-        run = functools.partial(graph, params=params, ndisp=int(ndisp),
-                                chunk=plan.disparity_chunk)
-    else:
-        padded_h, padded_w, padded_ndisp = bucket_shape(height, width, int(ndisp), plan.buckets)
-        left, right = pad_to_bucket(left, right, padded_h, padded_w)
-        run = functools.partial(graph, params=params, ndisp=padded_ndisp,
-                                valid_ndisp=jnp.int32(ndisp), chunk=plan.disparity_chunk)
-    maps = in_strips(run, left, right, rows=plan.strip_rows, overlap=plan.strip_overlap)
+    left, right, call = graph_call(left, right, ndisp, plan)
+    tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
+    maps = in_tiles(bind_graph(graph, params, call), left, right, tiling)
     if isinstance(maps, tuple):
         return type(maps)(*(m[:height, :width] for m in maps))
     return maps[:height, :width]

@@ -1,0 +1,165 @@
+"""Tiles (``ExecutionPlan(tile=S)``, ``--tile S``): the windows, the strips as their one-column
+case, the maps against the whole image, the memory guard's choice, and a pair too large for
+its budget matched in tiles under it (peak memory measured in a fresh process)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax import ExecutionPlan
+from sswjax.data.io import read_pfm
+from sswjax.runtime.memory import (
+    MemoryEstimateError,
+    estimate_peak_bytes,
+    plan_for_memory,
+    worker_peak_bytes,
+)
+from sswjax.runtime.plan import check_plan
+from sswjax.runtime.tiles import Tiling, in_tiles, tile_windows, window_shape
+
+CHEAP = sswjax.Params().replace(segments=None, aggregation={"kind": "box", "radius": 1})
+
+
+@pytest.mark.parametrize("height, width, tiling", [
+    (90, 60, Tiling(16, 16, 8, 12)), (100, 1000, Tiling(32, 64, 5, 40, align=4)),
+    (37, 300, Tiling(10, 0, 3, 7)), (64, 64, Tiling(100, 100, 8, 8)), (50, 500, Tiling(7, 9, 0, 2))])
+def test_windows_share_one_shape_and_their_cores_partition_the_image(height, width, tiling):
+    windows = tile_windows(height, width, tiling)
+    h, w = window_shape(height, width, tiling)
+    covered = np.zeros((height, width), int)
+    for win in windows:
+        assert (win.height, win.width) == (h, w)
+        assert 0 <= win.top and win.top + h <= height and 0 <= win.left and win.left + w <= width
+        covered[win.first:win.last, win.start:win.stop] += 1
+        # the collar, and the disparities' columns either side, unless the image ends first
+        assert win.first - win.top >= min(win.first, tiling.overlap)
+        assert win.top + h - win.last >= min(height - win.last, tiling.overlap)
+        if w < width:
+            reach = tiling.lead + tiling.overlap
+            assert win.start - win.left >= min(win.start, reach)
+            assert win.left + w - win.stop >= min(width - win.stop, reach)
+            if win.left + w < width - 1 and win.left > 0:
+                assert win.left % tiling.align == 0
+    assert (covered == 1).all()
+
+
+def _old_strips(run, left, right, *, rows, overlap):
+    """The strips of sswjax before tiles (``runtime/strips.py::in_strips``), the reference."""
+    height, window = left.shape[0], rows + 2 * overlap
+    if rows <= 0 or window >= height:
+        return np.asarray(run(left, right))
+    out = np.empty(left.shape[:2], np.float32)
+    for first in range(0, height, rows):
+        last = min(first + rows, height)
+        top = min(max(first - overlap, 0), height - window)
+        out[first:last] = np.asarray(run(left[top:top + window], right[top:top + window]))[
+            first - top:last - top]
+    return out
+
+
+@pytest.mark.parametrize("rows, overlap", [(4, 1), (7, 3), (20, 0), (3, 10), (0, 5)])
+def test_strips_are_the_one_column_tiling_as_before(rows, overlap):
+    rng = np.random.default_rng(rows)
+    image = rng.random((23, 11, 1), dtype=np.float32)
+
+    def run(left, right):  # depends on where the window starts: context matters
+        return np.cumsum(np.asarray(left)[..., 0], axis=0) + np.asarray(right)[..., 0]
+
+    expected = _old_strips(run, image, image, rows=rows, overlap=overlap)
+    np.testing.assert_array_equal(in_tiles(run, image, image, Tiling(rows, 0, overlap, 6)),
+                                  expected)
+
+
+def test_plans_with_tiles_are_checked():
+    assert check_plan(ExecutionPlan(tile=64)).tile == 64
+    with pytest.raises(ValueError, match=r"plan.tile \(64\) and plan.strip_rows \(32\) are both"):
+        check_plan(ExecutionPlan(tile=64, strip_rows=32))
+    with pytest.raises(ValueError, match="plan.tile must be an integer in"):
+        check_plan(ExecutionPlan(tile=-1))
+    with pytest.raises(TypeError, match="plan.engine must be None or have an execute method"):
+        check_plan(ExecutionPlan(engine="dask"))
+
+
+def test_memory_guard_cuts_a_wide_pair_in_tiles():
+    accurate = sswjax.preset("accurate")
+    shape = (2000, 40000, 256)                           # a satellite strip
+    fitted = plan_for_memory(*shape, params=accurate, limit=8e9)
+    assert fitted.tile and not fitted.strip_rows          # full-width strips cost more here
+    assert estimate_peak_bytes(*shape, params=accurate, plan=fitted) <= 8e9
+    # a worker holds only its window: far less than a process holding the pair
+    assert worker_peak_bytes(*shape, params=accurate, plan=fitted) < \
+        estimate_peak_bytes(*shape, params=accurate, plan=fitted) - 1e9
+    with pytest.raises(MemoryEstimateError, match=r"match in tiles with plan=sswjax\."
+                                                  r"ExecutionPlan\(tile=\d+\)") as error:
+        plan_for_memory(*shape, params=accurate, plan=ExecutionPlan(tile=4096), limit=8e9)
+    assert error.value.strips.tile and error.value.strips_estimate <= 8e9
+    shared = plan_for_memory(*shape, params=accurate, limit=16e9, share=2, local=False)
+    assert estimate_peak_bytes(*shape, params=accurate, plan=shared) <= 8e9
+
+
+def test_tiles_of_a_local_method_equal_the_whole_image(tmp_path, run_cli, square_pair):
+    # the cheap method sees a few pixels around each (census, box, medians) and, through the
+    # left-right check, the disparities' columns either side: tiles with a collar reproduce
+    # the whole image bit for bit, every output (--tile through the command line)
+    left, right = (np.round(image * 255).astype(np.uint8) for image in square_pair)
+    iio.imwrite(tmp_path / "l.png", left)
+    iio.imwrite(tmp_path / "r.png", right)
+    out = {name: tmp_path / name for name in ("d.pfm", "c.pfm", "v.png")}
+    argv = ["match", tmp_path / "l.png", tmp_path / "r.png", "--ndisp", 12, "-o", out["d.pfm"],
+            "--confidence", out["c.pfm"], "--validity", out["v.png"], "--preset", "paper",
+            "--set", "segments=none", "--set", "aggregation=box", "--set", "aggregation.radius=1"]
+    code, _, err = run_cli(argv + ["--tile", 16, "--strip-overlap", 8])
+    assert code == 0, err
+    whole = sswjax.match_with_confidence(left, right, 12, params=CHEAP)
+    np.testing.assert_array_equal(read_pfm(out["d.pfm"]), whole.disparity)
+    np.testing.assert_array_equal(read_pfm(out["c.pfm"]), whole.confidence)
+    np.testing.assert_array_equal(iio.imread(out["v.png"]), whole.validity)
+    code, _, err = run_cli(argv + ["--tile", 12, "--strip-rows", 8])
+    assert code == 2 and err == ("sswjax: error: --tile 12 and --strip-rows 8 both cut the "
+                                 "pair: give one\n")
+    code, _, err = run_cli(argv + ["--workers", 0])
+    assert code == 2 and "argument --workers: must be an integer >= 1, got '0'" in err
+
+
+PEAK = r"""
+import json, sys
+from sswjax.cli import main
+codes = [main(sys.argv[2:] + ["--tile", "256", "-o", "256.pfm", "--max-memory", sys.argv[1]])]
+status = open("/proc/self/status").read().split("VmHWM:")[1].split()   # the tiles of 256's
+codes.append(main(sys.argv[2:] + ["--tile", "512", "-o", "512.pfm"]))  # 1.11 GB: no budget
+print(json.dumps([codes, int(status[0]) * 1024]))
+"""
+
+
+def test_a_pair_too_large_for_the_budget_is_matched_in_tiles_under_it(tmp_path, texture):
+    # 640 x 960 x 128 disparities, the cheap method with 4 semi-global paths: 1.22 GB whole by
+    # the model, too much for 0.9 GB (the guard would cut it); in tiles of 256 it runs, its
+    # peak (VmHWM of a fresh process) under the budget, and its map equals the tiles of 512's
+    # but on a few pixels of the seams, where the paths restart.
+    height, width, ndisp, budget = 640, 960, 128, 0.9
+    right = texture(5, (height, width, 3))
+    iio.imwrite(tmp_path / "right.png", right)
+    iio.imwrite(tmp_path / "left.png", np.roll(right, 9, axis=1))
+    semi_global = CHEAP.replace(optimizer={"kind": "sgm", "paths": 4, "dtype": "uint8"})
+    assert estimate_peak_bytes(height, width, ndisp, params=semi_global) > budget * 1e9
+    fitted = plan_for_memory(height, width, ndisp, params=semi_global, limit=budget * 1e9)
+    assert fitted.tile or fitted.strip_rows                  # the guard would cut it too
+    argv = ["--no-cache", "match", "left.png", "right.png", "--ndisp", str(ndisp),
+            "--preset", "paper", "--set", "segments=none", "--set", "aggregation=box",
+            "--set", "aggregation.radius=1", "--set",
+            'optimizer={"kind": "sgm", "paths": 4, "dtype": "uint8"}']
+    run = subprocess.run([sys.executable, "-c", PEAK, str(budget), *argv], capture_output=True,
+                         text=True, timeout=600, cwd=tmp_path, check=False)
+    assert run.returncode == 0, run.stderr
+    codes, peak = json.loads(run.stdout.strip().splitlines()[-1])
+    assert codes == [0, 0] and peak <= budget * 1e9, (peak, run.stderr)
+    small, large = read_pfm(tmp_path / "256.pfm"), read_pfm(tmp_path / "512.pfm")
+    assert np.mean(small != large) < 0.005
+    assert np.median(small[:, ndisp:]) == pytest.approx(9, abs=0.01)
