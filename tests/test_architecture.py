@@ -18,6 +18,7 @@ LAYERS = (
     ("sswjax.runtime",),
     ("sswjax.api",),
     ("sswjax.data",),
+    ("sswjax.cluster",),
     ("sswjax.evaluation",),
     ("sswjax.search",),
     ("sswjax.cli",),

@@ -1,0 +1,179 @@
+"""Dask as the engine, on a real cluster of this machine: a session's LocalCluster of two spawned
+single-threaded worker processes. Folders through the cluster equal the single process bit for
+bit; a worker killed mid-run loses nothing; a bad pair is named while the others are written;
+one pair's strips or tiles are tasks; without Dask the options say what to install.
+
+Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair's windows are
+40 x 64 too: the workers and this process compile one graph between them.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+import sswjax
+from sswjax.cluster import PairJob, match_folder, match_pairs, match_tiles
+from sswjax.cluster.workers import PINNED_FLAGS, worker_environment
+from sswjax.data.io import read_image, read_pfm
+
+HEIGHT, WIDTH, NDISP, SHIFT = 40, 64, 8, 3
+CHEAP = sswjax.Params().replace(segments=None, aggregation={"kind": "box", "radius": 1})
+CHEAP_ARGS = ["--preset", "paper", "--set", "segments=none", "--set", "aggregation=box",
+              "--set", "aggregation.radius=1"]
+
+
+@pytest.fixture(scope="session")
+def cache(tmp_path_factory):
+    """The compilation cache the workers share."""
+    return str(tmp_path_factory.mktemp("xla-cache"))
+
+
+@pytest.fixture(scope="session")
+def cluster():
+    """Two worker processes, one thread each, XLA pinned to it (closed at the end)."""
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=":0", env=worker_environment()) as cluster:
+        yield cluster
+
+
+@pytest.fixture()
+def client(cluster):
+    with distributed.Client(cluster) as client:
+        client.wait_for_workers(2, timeout=120)
+        yield client
+
+
+def _folders(root, texture, count, *, seed=0):
+    left, right = root / "L", root / "R"
+    left.mkdir(), right.mkdir()
+    for i in range(count):
+        image = texture(seed + i, (HEIGHT, WIDTH, 3))
+        iio.imwrite(left / f"p{i:02d}.png", np.roll(image, SHIFT, axis=1))
+        iio.imwrite(right / f"p{i:02d}.png", image)
+    return left, right
+
+
+def _here(left, right, names):
+    """The maps of this process, as the reference."""
+    return {name: sswjax.match(read_image(left / name), read_image(right / name), NDISP,
+                               params=CHEAP) for name in names}
+
+
+def test_a_folder_through_the_cluster_equals_this_process_bit_for_bit(client, tmp_path, texture,
+                                                                      run_cli, cache, monkeypatch):
+    left, right = _folders(tmp_path, texture, 4)
+    monkeypatch.setenv("SSWJAX_CACHE_DIR", cache)
+    out = tmp_path / "out"
+    code, stdout, stderr = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out,
+                                    "--scheduler", client.scheduler.address, *CHEAP_ARGS])
+    assert code == 0, stderr
+    assert "wrote 4 disparity maps" in stdout and "on 2 workers" in stdout
+    assert "2 Dask workers at" in stderr and "dashboard http" in stderr and "pairs" in stderr
+    for name, expected in _here(left, right, sorted(os.listdir(left))).items():
+        assert read_pfm(out / name.replace(".png", ".pfm")).tobytes() == expected.tobytes()
+    flags = client.run(lambda: os.environ["XLA_FLAGS"])
+    assert all(all(f in value.split() for f in PINNED_FLAGS) for value in flags.values())
+    # --resume keeps them all: nothing is matched twice
+    before = {p.name: p.stat().st_mtime_ns for p in out.glob("*.pfm")}
+    code, stdout, _ = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out, "--resume",
+                               "--scheduler", client.scheduler.address, *CHEAP_ARGS])
+    assert code == 0 and "wrote 0 disparity maps" in stdout and "4 kept from before" in stdout
+    assert {p.name: p.stat().st_mtime_ns for p in out.glob("*.pfm")} == before
+
+
+def test_a_worker_killed_mid_run_loses_nothing(client, tmp_path, texture, cache):
+    left, right = _folders(tmp_path, texture, 40, seed=10)
+    out = tmp_path / "out"
+    pids = client.run(os.getpid)
+    summary = {}
+    run = threading.Thread(target=lambda: summary.update(result=match_folder(
+        client, left, right, out, NDISP, params=CHEAP, cache=cache)))
+    run.start()
+    deadline = time.monotonic() + 120
+    while not list(out.glob("*.pfm")) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    busy = client.processing()
+    victim = max(busy, key=lambda address: len(busy[address]))
+    assert busy[victim]                                         # it holds tasks when it dies
+    os.kill(pids[victim], signal.SIGKILL)                       # mid-run, whatever it holds
+    killed_at = len(list(out.glob("*.pfm")))
+    run.join(timeout=300)
+    assert not run.is_alive()
+    result = summary["result"]
+    assert killed_at < 40 and not result.failed and len(result.written) == 40
+    for name, expected in _here(left, right, sorted(os.listdir(left))).items():
+        assert read_pfm(out / name.replace(".png", ".pfm")).tobytes() == expected.tobytes()
+    assert victim not in client.nthreads()                       # it died; its tasks ran elsewhere
+    client.wait_for_workers(2, timeout=120)                      # and its nanny started another
+
+
+def test_a_bad_pair_is_named_and_the_others_are_written(client, tmp_path, texture, run_cli,
+                                                        cache, monkeypatch):
+    left, right = _folders(tmp_path, texture, 3, seed=50)
+    png = (left / "p01.png").read_bytes()
+    (left / "p01.png").write_bytes(png[: len(png) // 2])        # its header is whole: it passes
+    monkeypatch.setenv("SSWJAX_CACHE_DIR", cache)                # the checks before the run
+    out = tmp_path / "out"
+    code, stdout, stderr = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out,
+                                    "--scheduler", client.scheduler.address, *CHEAP_ARGS])
+    assert code == 2 and "wrote 2 disparity maps" in stdout and "1 failed" in stdout
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("sswjax: error: 1 of 3 pairs failed, the others are written")
+    assert "p01.png: " in last and str(left / "p01.png") in last
+    assert sorted(p.name for p in out.glob("*.pfm")) == ["p00.pfm", "p02.pfm"]
+    # through the API: an outcome with the name, never an exception
+    jobs = [PairJob("p01.png", str(left / "p01.png"), str(right / "p01.png"),
+                    str(tmp_path / "x.pfm"))]
+    (outcome,) = match_pairs(client, jobs, NDISP, params=CHEAP, cache=cache)
+    assert not outcome.ok and outcome.name == "p01.png" and "\n" not in outcome.message
+
+
+def test_one_pairs_strips_are_tasks(client, tmp_path, texture, run_cli, cache, monkeypatch):
+    right = texture(7, (120, WIDTH, 3))
+    left = np.roll(right, SHIFT, axis=1)
+    plan = sswjax.ExecutionPlan(strip_rows=24, strip_overlap=8)  # windows of 40 x 64
+    here = sswjax.match(left, right, NDISP, params=CHEAP, plan=plan)
+    there = match_tiles(client, left, right, NDISP, params=CHEAP, plan=plan, cache=cache)
+    assert there.tobytes() == here.tobytes()
+    iio.imwrite(tmp_path / "l.png", left)
+    iio.imwrite(tmp_path / "r.png", right)
+    monkeypatch.setenv("SSWJAX_CACHE_DIR", cache)
+    code, _, stderr = run_cli(["match", tmp_path / "l.png", tmp_path / "r.png", "--ndisp", NDISP,
+                               "-o", tmp_path / "d.pfm", "--strip-rows", 24, "--strip-overlap", 8,
+                               "--scheduler", client.scheduler.address, *CHEAP_ARGS])
+    assert code == 0, stderr
+    assert "tiles" in stderr and "dashboard" in stderr
+    assert read_pfm(tmp_path / "d.pfm").tobytes() == \
+        sswjax.match(read_image(tmp_path / "l.png"), read_image(tmp_path / "r.png"), NDISP,
+                     params=CHEAP, plan=plan).tobytes()
+
+
+NO_DASK = r"""
+import sys
+sys.modules["distributed"] = None      # as if the extra were not installed
+from sswjax.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("where", [["--workers", "2"], ["--scheduler", "tcp://127.0.0.1:1"]])
+def test_without_dask_the_options_say_what_to_install(tmp_path, texture, where):
+    left, right = _folders(tmp_path, texture, 1)
+    run = subprocess.run([sys.executable, "-c", NO_DASK, "match", str(left), str(right),
+                          "--ndisp", "8", "-o", str(tmp_path / "out"), *where],
+                         capture_output=True, text=True, timeout=300, check=False)
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr == (f"sswjax: error: {where[0]} runs on Dask, which is not installed: "
+                          'pip install "sswjax[distributed]"\n')
+    assert not (tmp_path / "out").exists()
