@@ -242,6 +242,24 @@ def test_cli_npz_cloud_and_depth_range(small_pair, tmp_path, run_cli):
         assert cloud["xyz"].shape == (small_pair.height * small_pair.width, 3)
 
 
+def test_cli_depth_png(small_pair, tmp_path, run_cli):
+    from sswjax.data.io import read_pfm
+    from sswjax.data.scaled import read_scaled_disparity
+
+    folder = small_pair.folder
+    rig = ["--focal", 100, "--baseline", 0.5, "--ndisp", small_pair.ndisp]
+    code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", *rig, "-o",
+                               tmp_path / "d.pfm", "--depth", tmp_path / "z.PNG",
+                               "--depth-scale", 1000])
+    assert code == 0, stderr
+    depth = depth_from_disparity(read_pfm(tmp_path / "d.pfm"), focal=100, baseline=0.5)
+    written = read_scaled_disparity(tmp_path / "z.PNG", scale=1000)   # 0 -> inf
+    expected = np.where(np.isfinite(depth) & (depth * 1000 < 65535.5),
+                        np.round(depth * 1000) / 1000, np.inf).astype(np.float32)
+    assert np.isfinite(expected).mean() > 0.5
+    np.testing.assert_allclose(written, expected, rtol=1e-6)
+
+
 def test_cli_calib_file(small_pair, tmp_path, run_cli):
     from sswjax.data.io import read_pfm
 
@@ -297,11 +315,22 @@ GOOD_CALIB = "cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\nbaseline=30\n"
      "output folder does not exist: {out}/missing"),
     (None, ["--kitti-png", "{out}/missing/k.png"], "output folder does not exist: {out}/missing"),
     (None, ["--kitti-png", "{out}"], "output {out} is a folder, expected a file name"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.png"],
+     ("--depth DEPTH.png needs --depth-scale S (value = round(depth * S), e.g. 1000 for "
+      "millimetres of a rig in metres)")),
+    (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.pfm", "--depth-scale", "10"],
+     "--depth-scale goes with --depth DEPTH.png"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.png", "--depth-scale", "0"],
+     "argument --depth-scale: expected a number > 0, got '0'"),
+    (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.jpg"],
+     ("--depth {out}/z.jpg: unsupported extension '.jpg'; --depth writes .pfm, .npy, .tif or "
+      ".tiff (float32), or .png (16-bit, round(depth * --depth-scale), 0 = unknown)")),
 ], ids=["calib-missing", "calib-no-baseline", "calib-no-cam0", "calib-zero-focal",
         "calib-negative-baseline", "focal-zero", "focal-negative", "baseline-zero", "focal-nan",
         "calib-and-focal", "calib-and-baseline", "baseline-without-focal",
         "focal-without-baseline", "depth-without-calibration", "ply-missing-folder",
-        "depth-missing-folder", "kitti-missing-folder", "kitti-is-a-folder"])
+        "depth-missing-folder", "kitti-missing-folder", "kitti-is-a-folder",
+        "depth-png-without-scale", "scale-without-png", "scale-zero", "depth-jpg"])
 def test_match_geometry_bad_input(small_pair, tmp_path, run_cli, calib_text, options, message):
     out = tmp_path / "out"
     out.mkdir()

@@ -2,7 +2,8 @@
 KITTI's PNG.
 
 ``--kitti-png`` writes KITTI's 16-bit PNG (disparity x 256); ``--depth`` the depth
-``baseline * f / (d + doffs)`` (by its extension: ``.pfm``, ``.npy``, ``.tif``, ``.tiff``) and
+``baseline * f / (d + doffs)`` (by its extension: ``.pfm``, ``.npy``, ``.tif``, ``.tiff``, or
+``.png``, 16 bits of ``round(depth * --depth-scale)``) and
 ``--ply`` the point cloud of the pixels of finite positive depth (by its extension: ``.ply``
 or ``.npz``), both from the rig of ``--calib calib.txt``, of ``--focal F --baseline B
 [--doffs D] [--principal CX CY]`` (:mod:`sswjax.api.geometry`), or of a raw camera's
@@ -26,16 +27,32 @@ from sswjax.api.geometry import (Calibration, Rectification, StereoCalibration, 
 from sswjax.api.raw_frame import raw_depth, raw_point_cloud
 from sswjax.cli.common import Writer
 from sswjax.data.calibration import read_calibration
-from sswjax.data.io import write_float_map
+from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_float_map
 from sswjax.data.ply import CLOUD_SUFFIXES, write_cloud
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["CLOUD_FORMATS", "add_geometry_options", "alpha_option", "calibration", "depth_range",
-           "geometry_writers"]
+__all__ = ["CLOUD_FORMATS", "DEPTH_FORMATS", "add_geometry_options", "alpha_option", "calibration",
+           "depth_range", "geometry_writers", "positive_number"]
 
 CLOUD_FORMATS = {"--ply": (CLOUD_SUFFIXES,
                            ".ply (binary PLY point cloud) or .npz (xyz float32, rgb uint8)")}
 """The endings ``--ply`` writes, for :func:`sswjax.cli.common.check_outputs`."""
+
+DEPTH_FORMATS = {"--depth": (FLOAT_MAP_SUFFIXES + (".png",),
+                             (".pfm, .npy, .tif or .tiff (float32), or .png (16-bit, "
+                              "round(depth * --depth-scale), 0 = unknown)"))}
+"""The endings ``--depth`` writes, for :func:`sswjax.cli.common.check_outputs`."""
+
+
+def positive_number(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
 
 
 def alpha_option(text: str) -> float:
@@ -57,8 +74,13 @@ def add_geometry_options(parser: argparse.ArgumentParser) -> None:
                         help="also write KITTI's 16-bit PNG (disparity x 256, 0 = invalid)")
     parser.add_argument("--depth", type=Path, metavar="DEPTH.pfm",
                         help="also write the depth baseline * f / (d + doffs) as .pfm, .npy, "
-                             ".tif or .tiff (float32, inf where d + doffs <= 0); needs --calib "
-                             "or --focal and --baseline")
+                             ".tif or .tiff (float32, inf where d + doffs <= 0), or .png "
+                             "(16-bit, round(depth * --depth-scale), 0 = unknown); needs "
+                             "--calib, --focal and --baseline, or --rectify")
+    parser.add_argument("--depth-scale", type=positive_number, metavar="S",
+                        help="with --depth DEPTH.png: file value per unit of depth (1000 writes "
+                             "millimetres of a rig calibrated in metres; depths beyond 65535 / S "
+                             "are written 0)")
     parser.add_argument("--ply", type=Path, metavar="CLOUD.ply",
                         help="also write the cloud: the pixels of finite positive depth with the "
                              "left image's colours, by its extension: .ply (binary PLY) or .npz "
@@ -96,6 +118,12 @@ def calibration(args: argparse.Namespace) -> Calibration | None:
     Raises ``ValueError`` (one line) for options that do not go together, or that
     ``--depth`` / ``--ply`` lack.
     """
+    png = args.depth is not None and args.depth.suffix.lower() == ".png"
+    if png and getattr(args, "depth_scale", None) is None:
+        raise ValueError("--depth DEPTH.png needs --depth-scale S (value = round(depth * S), "
+                         "e.g. 1000 for millimetres of a rig in metres)")
+    if not png and getattr(args, "depth_scale", None) is not None:
+        raise ValueError("--depth-scale goes with --depth DEPTH.png")
     by_hand = [f"--{name}" for name in ("baseline", "doffs", "principal")
                if getattr(args, name) is not None]
     options, one = ", ".join(by_hand), len(by_hand) == 1
@@ -163,8 +191,12 @@ def geometry_writers(args: argparse.Namespace, disparity: np.ndarray, left: np.n
         else:
             depth = depth_from_disparity(disparity, focal=calib.focal, baseline=calib.baseline,
                                          doffs=calib.doffs)
-        writers[args.depth] = lambda tmp: write_float_map(tmp, depth, suffix=args.depth.suffix,
-                                                          atomic=False)
+        if args.depth.suffix.lower() == ".png":
+            writers[args.depth] = lambda tmp: write_scaled_disparity(
+                tmp, depth, scale=args.depth_scale, atomic=False)
+        else:
+            writers[args.depth] = lambda tmp: write_float_map(
+                tmp, depth, suffix=args.depth.suffix, atomic=False)
     if args.ply is not None:
         cloud = (raw_point_cloud(disparity, left, stereo, rectification) if stereo is not None
                  else point_cloud(disparity, left, calib))

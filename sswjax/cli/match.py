@@ -36,8 +36,8 @@ from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, 
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
 from sswjax.cli.folders import folder_pairs, image_size, match_folders
-from sswjax.cli.geometry import (CLOUD_FORMATS, add_geometry_options, calibration, depth_range,
-                                 geometry_writers)
+from sswjax.cli.geometry import (CLOUD_FORMATS, DEPTH_FORMATS, add_geometry_options,
+                                 calibration, depth_range, geometry_writers)
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import (add_parameter_options, add_plan_options, params_from_args,
                                 plan_from_args)
@@ -70,7 +70,8 @@ def ndisp_option(text: str) -> int | str:
 
 def add_match_command(commands) -> None:
     """Add the ``match`` sub-command to ``commands`` (argparse's sub-parsers)."""
-    parser = commands.add_parser("match", help="disparity map of a rectified pair")
+    parser = commands.add_parser("match", help="disparity map of a rectified pair (a raw one "
+                                               "with --rectify)")
     parser.add_argument("left", type=Path, help="left (reference) image, or a folder of them")
     parser.add_argument("right", type=Path, help="right image, or a folder (pairs: same names)")
     parser.add_argument("--ndisp", type=ndisp_option, metavar="N",
@@ -176,7 +177,8 @@ def run_match(args: argparse.Namespace) -> int:
     inputs = {"LEFT": args.left, "RIGHT": args.right, "--calib": args.calib,
               "--params": args.params}
     inputs.update({f"--rectify {i + 1}": path for i, path in enumerate(args.rectify or [])})
-    check_outputs(outputs, inputs, formats={**OUTPUT_FORMATS, **CLOUD_FORMATS})
+    check_outputs(outputs, inputs, formats={**OUTPUT_FORMATS, **CLOUD_FORMATS,
+                                                      **DEPTH_FORMATS})
     calib = calibration(args)
     params, execution = params_from_args(args)
     plan = guard_pair(args, params, plan_from_args(args, execution))
