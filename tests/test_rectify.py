@@ -322,3 +322,16 @@ def test_folder_rectification(rig, tmp_path):
         out = rectify_images(args, left, right)
         np.testing.assert_array_equal(out[0], rectify_pair(left, right, CALIB).left)
     assert rectify_images(argparse.Namespace(rectify=None), left, right)[0] is left
+
+
+def test_match_folders_with_rectify_refused_for_now(rig, tmp_path, run_cli):
+    # until sswjax.cli.folders rectifies each pair: one line, nothing written
+    folder, left, right, _ = rig
+    for side, image in (("L", left), ("R", right)):
+        (tmp_path / side).mkdir()
+        cv2.imwrite(str(tmp_path / side / "a.png"), image)
+    code, _, stderr = run_cli(["match", tmp_path / "L", tmp_path / "R", "--rectify",
+                               folder / "stereo.yaml", "--ndisp", "48", "-o", tmp_path / "out"])
+    assert code == 2 and stderr.count("\n") == 1, stderr
+    assert "--rectify takes one pair for now" in stderr
+    assert not (tmp_path / "out").exists()

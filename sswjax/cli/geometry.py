@@ -44,12 +44,17 @@ DEPTH_FORMATS = {"--depth": (FLOAT_MAP_SUFFIXES + (".png",),
 """The endings ``--depth`` writes, for :func:`sswjax.cli.common.check_outputs`."""
 
 
+def _number(text: str) -> float:
+    """``text`` as a float, NaN if it is none."""
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
 def positive_number(text: str) -> float:
     """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
+    value = _number(text)
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
     return value
@@ -57,10 +62,7 @@ def positive_number(text: str) -> float:
 
 def alpha_option(text: str) -> float:
     """``--alpha``: a number in [0, 1]."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
+    value = _number(text)
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
     return value

@@ -31,7 +31,6 @@ from sswjax._files import atomic_outputs
 from sswjax.api.auto_range import estimate_range
 from sswjax.api.match import match, match_with_confidence
 from sswjax.api.rectify import rectification, rectified_calibration
-from sswjax.cli import folders
 from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, gigabytes
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
@@ -131,8 +130,7 @@ def _folders(args: argparse.Namespace) -> int:
     if args.ndisp == AUTO:
         raise ValueError("--ndisp auto takes one pair: with folders give --ndisp N or "
                          "--depth-range ZMIN ZMAX")
-    if args.rectify is not None and not hasattr(folders, "rectify_images"):
-        # until sswjax.cli.folders rectifies each pair (sswjax.cli.rectify.rectify_images)
+    if args.rectify is not None:  # until sswjax.cli.folders calls cli.rectify.rectify_images
         raise ValueError("--rectify takes one pair for now: rectify the folders' pairs with "
                          "sswjax rectify first")
     if args.depth_range is not None and os.path.isdir(args.left) and os.path.isdir(args.right):
