@@ -234,7 +234,7 @@ DISTORTION_SIZES = (0, 4, 5, 8, 12, 14)
 """Distortion vector lengths OpenCV's pinhole model takes."""
 
 
-def checked_array(value, name: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+def checked_array(value, name: str, *, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """float64 array of ``value`` with ``shape`` (a vector ``(n,)`` takes any shape of ``n``
     numbers), every value finite; else ``ValueError`` of one line naming ``name``."""
     try:
@@ -253,7 +253,7 @@ def checked_array(value, name: str, shape: tuple[int, ...] | None = None) -> np.
 
 def _camera_matrix(value, name: str, columns: int = 3) -> np.ndarray:
     """A 3x3 (or 3x4 projection) ``[fx s cx; 0 fy cy; 0 0 1]`` with ``fx, fy > 0``."""
-    matrix = checked_array(value, name, (3, columns))
+    matrix = checked_array(value, name, shape=(3, columns))
     if matrix[0, 0] == 0 or matrix[1, 1] == 0:
         raise ValueError(f"{name} is singular: a focal length is 0")
     if (matrix[1, 0], matrix[2, 0], matrix[2, 1]) != (0, 0, 0) or \
@@ -265,7 +265,7 @@ def _camera_matrix(value, name: str, columns: int = 3) -> np.ndarray:
 
 
 def _rotation(value, name: str) -> np.ndarray:
-    matrix = checked_array(value, name, (3, 3))
+    matrix = checked_array(value, name, shape=(3, 3))
     error = float(np.abs(matrix @ matrix.T - np.eye(3)).max())
     if error > 1e-4:
         detail = "singular" if abs(np.linalg.det(matrix)) < 1e-9 else f"R R^T - I up to {error:.2g}"
@@ -278,7 +278,7 @@ def _rotation(value, name: str) -> np.ndarray:
 def _size(value, name: str) -> tuple[int, int] | None:
     if value is None:
         return None
-    width, height = checked_array(value, name, (2,))
+    width, height = checked_array(value, name, shape=(2,))
     if not (width.is_integer() and height.is_integer() and width >= 1 and height >= 1):
         raise ValueError(f"{name} must be two positive integers (width, height), "
                          f"got {width:g} x {height:g}")
@@ -323,15 +323,15 @@ def check_stereo_calibration(calib: StereoCalibration, *, names=None) -> StereoC
         raise TypeError(f"calib must be a sswjax.api.geometry.StereoCalibration, "
                         f"got {type(calib).__name__}")
     name = {**NAMES, **(names or {})}
-    translation = checked_array(calib.translation, name["translation"], (3,))
+    translation = checked_array(calib.translation, name["translation"], shape=(3,))
     if not np.any(translation):
         raise ValueError(f"{name['translation']} is zero: the two cameras are at the same place")
     rect = calib.rectification
     if rect is not None:
+        q = None if rect.q is None else checked_array(rect.q, name["q"], shape=(4, 4))
         rect = Rectification(_rotation(rect.r1, name["r1"]), _rotation(rect.r2, name["r2"]),
                              _camera_matrix(rect.p1, name["p1"], 4),
-                             _camera_matrix(rect.p2, name["p2"], 4),
-                             None if rect.q is None else checked_array(rect.q, name["q"], (4, 4)),
+                             _camera_matrix(rect.p2, name["p2"], 4), q,
                              _size(rect.size, name["size"]))
     return StereoCalibration(
         _camera_matrix(calib.left_matrix, name["left_matrix"]),

@@ -47,7 +47,7 @@ def matrix(path: Path, key: str, value, *, shape: tuple[int, ...] | None = None
             data = data.reshape(int(rows), int(cols))
         value = data
     try:
-        return checked_array(value, key, shape)
+        return checked_array(value, key, shape=shape)
     except ValueError as exc:
         raise InputError(f"calibration file {path}: {exc}") from None
 
