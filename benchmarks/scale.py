@@ -1,0 +1,196 @@
+"""Scaling: the 30 KITTI 2012 pairs on 1 and 2 Dask workers against the in-process folder loop,
+and the cost of tiles on full-resolution input.
+
+Folders: ``sswjax match image_0 image_1 --ndisp 128 -o OUT`` (the ``accurate`` preset) in a
+fresh process each time, four ways: the in-process loop as it is, the same loop with XLA
+pinned to one thread (the environment every worker gets), ``--workers 1`` and ``--workers 2``.
+Each first runs on one pair of each shape, to fill the compilation cache of its XLA flags (the
+pinned flags compile other executables), then is timed on all the pairs: the command's
+wall time, and the loop's (the summary line's seconds: from the first pair to the last map,
+the cluster's start included). Ratios: 2 workers over 1 (goal >= 1.7 on this 2-core machine)
+and Dask's overhead, 1 worker against the pinned loop (goal <= 10 %).
+
+Tiles: a pair of MiddEval3's full resolution (Motorcycle's quarter-resolution images resized
+to 1988 x 2964, ndisp 280) and a KITTI pair (its own full resolution, 1226 x 370, ndisp 128),
+matched whole and in the strips and tiles named below, each the second of two calls in one
+process (compiled): the time ratio tiled / whole. Writes ``benchmarks/results/scale.md``.
+
+    python benchmarks/scale.py [--data ../shared/data] [--skip-folders] [--skip-tiles]
+                               [--report-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from sswjax.cluster.pairs import folder_pairs
+from sswjax.cluster.workers import worker_environment
+
+NDISP = 128
+FOLDER_RUNS = {  # name -> (extra options, extra environment)
+    "in-process loop": ([], {}),
+    "in-process loop, XLA on 1 thread": ([], "pinned"),
+    "--workers 1": (["--workers", "1"], {}),
+    "--workers 2": (["--workers", "2"], {}),
+}
+TILINGS = {  # pair -> the plans timed against the whole image
+    "MiddEval3 F (1988 x 2964, ndisp 280)": [{"strip_rows": 512}, {"tile": 1024}],
+    "KITTI 000100 (370 x 1226, ndisp 128)": [{"strip_rows": 128}, {"tile": 256}],
+}
+
+TILE_CHILD = r"""
+import json, sys, time
+import numpy as np
+import sswjax
+from skimage.transform import resize
+from sswjax.data.io import read_image
+from sswjax.runtime.compilation import enable_compilation_cache
+enable_compilation_cache()
+data, which, plan = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
+if which.startswith("MiddEval3"):
+    folder = f"{data}/MiddEval3/trainingQ/Motorcycle"
+    left, right = (resize(read_image(f"{folder}/{name}"), (1988, 2964), order=1,
+                          preserve_range=True).astype(np.uint8) for name in ("im0.png", "im1.png"))
+    ndisp = 280
+else:
+    left = read_image(f"{data}/KITTI2012/training/image_0/000100_10.png")
+    right = read_image(f"{data}/KITTI2012/training/image_1/000100_10.png")
+    ndisp = 128
+plan = sswjax.ExecutionPlan(**plan)
+seconds = []
+for _ in range(2):
+    start = time.perf_counter()
+    sswjax.match(left, right, ndisp, plan=plan, check_memory=False)
+    seconds.append(time.perf_counter() - start)
+print(json.dumps(seconds))
+"""
+
+
+def folder_run(folders: tuple[Path, Path], out: Path, options, environment
+               ) -> tuple[float, float]:
+    """``(command seconds, loop seconds)`` of one folder run of ``folders`` (left, right)."""
+    env = dict(os.environ, **(worker_environment() if environment == "pinned" else environment))
+    argv = [sys.executable, "-m", "sswjax.cli", "match", str(folders[0]), str(folders[1]),
+            "--ndisp", str(NDISP), "-o", str(out), *options]
+    start = time.perf_counter()
+    run = subprocess.run(argv, env=env, capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - start
+    if run.returncode != 0:
+        raise RuntimeError(run.stderr)
+    loop = float(re.search(r"shapes, ([0-9.]+) s", run.stdout).group(1))
+    return seconds, loop
+
+
+def _one_of_each_shape(data: Path, scratch: Path) -> tuple[Path, Path]:
+    """Folders (links) holding the first KITTI pair of each image size: the warm-up."""
+    left, right = data / "KITTI2012/training/image_0", data / "KITTI2012/training/image_1"
+    seen = {}
+    for pair in folder_pairs(left, right):
+        seen.setdefault(pair.size, pair)
+    warm = scratch / "warm-left", scratch / "warm-right"
+    for folder, side in zip(warm, ("left", "right")):
+        folder.mkdir()
+        for pair in seen.values():
+            (folder / pair.name).symlink_to(getattr(pair, side))
+    return warm
+
+
+def measure_folders(data: Path) -> list[dict]:
+    rows = []
+    kitti = data / "KITTI2012/training/image_0", data / "KITTI2012/training/image_1"
+    count = len(folder_pairs(*kitti))
+    with tempfile.TemporaryDirectory() as scratch:
+        warm = _one_of_each_shape(data, Path(scratch))
+        for name, (options, environment) in FOLDER_RUNS.items():
+            folder_run(warm, Path(scratch) / f"warm-{len(rows)}", options, environment)
+            command, loop = folder_run(kitti, Path(scratch) / f"run-{len(rows)}", options,
+                                       environment)
+            rows.append({"what": name, "command_s": command, "loop_s": loop,
+                         "pairs": count, "pairs_per_minute": count * 60 / loop,
+                         "load_average": os.getloadavg()[0]})
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    return rows
+
+
+def measure_tiles(data: Path) -> list[dict]:
+    rows = []
+    for pair, plans in TILINGS.items():
+        times = {}
+        for plan in [{}] + plans:
+            run = subprocess.run([sys.executable, "-c", TILE_CHILD, str(data), pair,
+                                  json.dumps(plan)], capture_output=True, text=True, check=False)
+            if run.returncode != 0:
+                raise RuntimeError(run.stderr)
+            times[json.dumps(plan)] = json.loads(run.stdout.strip().splitlines()[-1])[1]
+            whole = times["{}"]
+            rows.append({"pair": pair, "plan": json.dumps(plan) if plan else "whole",
+                         "seconds": times[json.dumps(plan)],
+                         "ratio": times[json.dumps(plan)] / whole})
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    return rows
+
+
+def table(folders: list[dict], tiles: list[dict]) -> str:
+    lines = ["# Scaling on this machine (2 cores)", "", "`python benchmarks/scale.py`.", ""]
+    if folders:
+        by = {row["what"]: row for row in folders}
+        lines += ["## 30 KITTI 2012 pairs, `accurate`, ndisp 128", "",
+                  "| run | command s | loop s | pairs / min | load average (1 min) after |",
+                  "|---|---:|---:|---:|---:|"]
+        lines += [f"| {r['what']} | {r['command_s']:.1f} | {r['loop_s']:.1f} | "
+                  f"{r['pairs_per_minute']:.1f} | {r['load_average']:.1f} |" for r in folders]
+        one, two = by["--workers 1"]["loop_s"], by["--workers 2"]["loop_s"]
+        pinned, loop = by["in-process loop, XLA on 1 thread"]["loop_s"], by["in-process loop"]["loop_s"]
+        lines += ["", (f"- 2 workers over 1: **{one / two:.2f}x** the throughput (goal >= 1.7); "
+                       f"over the in-process loop: {loop / two:.2f}x."),
+                  (f"- Dask's overhead, 1 worker against the loop with XLA on one thread: "
+                   f"**{100 * (one / pinned - 1):+.1f} %** (goal <= 10 %); against the loop as "
+                   f"it is: {100 * (one / loop - 1):+.1f} %."), ""]
+        load = max(r["load_average"] for r in folders)
+        if load > (os.cpu_count() or 1):
+            lines += [(f"Measured while other jobs shared the machine (load average up to "
+                       f"{load:.1f} on {os.cpu_count()} cores): the workers competed with them "
+                       "for the cores, so these ratios are not the machine's own."), ""]
+    if tiles:
+        lines += ["## The cost of tiles (`accurate`, collar 32, compiled)", "",
+                  "| pair | plan | s | tiled / whole |", "|---|---|---:|---:|"]
+        lines += [f"| {r['pair']} | {r['plan']} | {r['seconds']:.1f} | {r['ratio']:.2f} |"
+                  for r in tiles]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=Path("../shared/data"))
+    parser.add_argument("--skip-folders", action="store_true")
+    parser.add_argument("--skip-tiles", action="store_true")
+    parser.add_argument("--results", type=Path, default=Path(__file__).parent / "results")
+    parser.add_argument("--report-only", action="store_true",
+                        help="write scale.md again from scale.json, measuring nothing")
+    args = parser.parse_args(argv)
+    data = args.data.resolve()
+    if args.report_only:
+        saved = json.loads((args.results / "scale.json").read_text())
+        folders, tiles = saved["folders"], saved["tiles"]
+    else:
+        folders = [] if args.skip_folders else measure_folders(data)
+        tiles = [] if args.skip_tiles else measure_tiles(data)
+    text = table(folders, tiles)
+    print(text)
+    args.results.mkdir(parents=True, exist_ok=True)
+    (args.results / "scale.md").write_text(text + "\n")
+    (args.results / "scale.json").write_text(json.dumps({"folders": folders, "tiles": tiles},
+                                                        indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
