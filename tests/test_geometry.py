@@ -316,15 +316,15 @@ GOOD_CALIB = "cam0=[200 0 19.5; 0 200 11.5; 0 0 1]\nbaseline=30\n"
     (None, ["--kitti-png", "{out}/missing/k.png"], "output folder does not exist: {out}/missing"),
     (None, ["--kitti-png", "{out}"], "output {out} is a folder, expected a file name"),
     (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.png"],
-     ("--depth DEPTH.png needs --depth-scale S (value = round(depth * S), e.g. 1000 for "
-      "millimetres of a rig in metres)")),
+     ("--depth {out}/z.png: unsupported extension '.png'; --depth writes .pfm, .npy, .tif or "
+      ".tiff (float32), or .png with --depth-scale S (16-bit, round(depth * S))")),
     (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.pfm", "--depth-scale", "10"],
      "--depth-scale goes with --depth DEPTH.png"),
     (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.png", "--depth-scale", "0"],
      "argument --depth-scale: expected a number > 0, got '0'"),
     (GOOD_CALIB, ["--calib", "{calib}", "--depth", "{out}/z.jpg"],
      ("--depth {out}/z.jpg: unsupported extension '.jpg'; --depth writes .pfm, .npy, .tif or "
-      ".tiff (float32), or .png (16-bit, round(depth * --depth-scale), 0 = unknown)")),
+      ".tiff (float32), or .png with --depth-scale S (16-bit, round(depth * S))")),
 ], ids=["calib-missing", "calib-no-baseline", "calib-no-cam0", "calib-zero-focal",
         "calib-negative-baseline", "focal-zero", "focal-negative", "baseline-zero", "focal-nan",
         "calib-and-focal", "calib-and-baseline", "baseline-without-focal",

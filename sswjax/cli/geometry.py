@@ -31,17 +31,23 @@ from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_float_map
 from sswjax.data.ply import CLOUD_SUFFIXES, write_cloud
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["CLOUD_FORMATS", "DEPTH_FORMATS", "add_geometry_options", "alpha_option", "calibration",
+__all__ = ["CLOUD_FORMATS", "add_geometry_options", "alpha_option", "calibration", "depth_formats",
            "depth_range", "geometry_writers", "positive_number"]
 
 CLOUD_FORMATS = {"--ply": (CLOUD_SUFFIXES,
                            ".ply (binary PLY point cloud) or .npz (xyz float32, rgb uint8)")}
 """The endings ``--ply`` writes, for :func:`sswjax.cli.common.check_outputs`."""
 
-DEPTH_FORMATS = {"--depth": (FLOAT_MAP_SUFFIXES + (".png",),
-                             (".pfm, .npy, .tif or .tiff (float32), or .png (16-bit, "
-                              "round(depth * --depth-scale), 0 = unknown)"))}
-"""The endings ``--depth`` writes, for :func:`sswjax.cli.common.check_outputs`."""
+
+def depth_formats(args: argparse.Namespace) -> dict[str, tuple[tuple[str, ...], str]]:
+    """The endings ``--depth`` writes, for :func:`sswjax.cli.common.check_outputs`: the float
+    maps, and ``.png`` with ``--depth-scale``."""
+    floats = ".pfm, .npy, .tif or .tiff (float32)"
+    if getattr(args, "depth_scale", None) is None:
+        return {"--depth": (FLOAT_MAP_SUFFIXES,
+                            f"{floats}, or .png with --depth-scale S (16-bit, round(depth * S))")}
+    return {"--depth": (FLOAT_MAP_SUFFIXES + (".png",),
+                        f"{floats}, or .png (16-bit, round(depth * --depth-scale), 0 = unknown)")}
 
 
 def _number(text: str) -> float:
@@ -120,11 +126,8 @@ def calibration(args: argparse.Namespace) -> Calibration | None:
     Raises ``ValueError`` (one line) for options that do not go together, or that
     ``--depth`` / ``--ply`` lack.
     """
-    png = args.depth is not None and args.depth.suffix.lower() == ".png"
-    if png and getattr(args, "depth_scale", None) is None:
-        raise ValueError("--depth DEPTH.png needs --depth-scale S (value = round(depth * S), "
-                         "e.g. 1000 for millimetres of a rig in metres)")
-    if not png and getattr(args, "depth_scale", None) is not None:
+    png = args.depth is not None and args.depth.suffix.lower() == ".png"  # with a scale
+    if not png and getattr(args, "depth_scale", None) is not None:  # (depth_formats)
         raise ValueError("--depth-scale goes with --depth DEPTH.png")
     by_hand = [f"--{name}" for name in ("baseline", "doffs", "principal")
                if getattr(args, name) is not None]

@@ -35,8 +35,8 @@ from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, 
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
 from sswjax.cli.folders import folder_pairs, image_size, match_folders
-from sswjax.cli.geometry import (CLOUD_FORMATS, DEPTH_FORMATS, add_geometry_options,
-                                 calibration, depth_range, geometry_writers)
+from sswjax.cli.geometry import (CLOUD_FORMATS, add_geometry_options, calibration,
+                                 depth_formats, depth_range, geometry_writers)
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import (add_parameter_options, add_plan_options, params_from_args,
                                 plan_from_args)
@@ -176,7 +176,7 @@ def run_match(args: argparse.Namespace) -> int:
               "--params": args.params}
     inputs.update({f"--rectify {i + 1}": path for i, path in enumerate(args.rectify or [])})
     check_outputs(outputs, inputs, formats={**OUTPUT_FORMATS, **CLOUD_FORMATS,
-                                                      **DEPTH_FORMATS})
+                                                      **depth_formats(args)})
     calib = calibration(args)
     params, execution = params_from_args(args)
     plan = guard_pair(args, params, plan_from_args(args, execution))
