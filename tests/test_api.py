@@ -9,9 +9,11 @@ import importlib
 import inspect
 import pkgutil
 
+import numpy as np
 import pytest
 
 import sswjax
+from sswjax.api.auto_range import estimate_range
 
 # The command line takes argv, not arrays and options; its functions are not API.
 _NOT_API = "sswjax.cli"
@@ -59,3 +61,19 @@ def test_top_level_reexports_the_public_api():
     for name in ("match", "match_with_confidence", "ssw_disparity", "aggregated_cost", "Params",
                  "preset", "load_params", "save_params", "ShapeBuckets", "ExecutionPlan"):
         assert name in sswjax.__all__
+
+
+def test_match_estimates_the_range_when_ndisp_is_none():
+    """ndisp=None: the range of sswjax.api.auto_range.estimate_range, then the same map as
+    when that range is given; min_disp cannot go with it."""
+    rng = np.random.default_rng(3)
+    right = rng.random((96, 192, 3), dtype=np.float32)
+    left = np.roll(right, 20, axis=1)
+    params = sswjax.preset("fast")
+    found = estimate_range(left, right)
+    estimated = sswjax.match(left, right, None, params=params)
+    given = sswjax.match(left, right, found.ndisp, min_disp=found.min_disp, params=params)
+    np.testing.assert_array_equal(estimated, given)
+    assert abs(float(np.median(estimated[:, 40:])) - 20) <= 0.5
+    with pytest.raises(ValueError, match="min_disp"):
+        sswjax.match(left, right, None, min_disp=3, params=params)

@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sswjax.api.auto_range import estimate_range
 from sswjax.api.images import checked_pair
 from sswjax.api.ranges import check_disparity_range, from_range_frame, range_frame
 from sswjax.config import Params, check_params, default_params
@@ -30,7 +31,7 @@ _OUTPUTS = bounded(ssw_outputs, static_argnames=("ndisp", "chunk", "measure"))
 
 
 def match(
-    left, right, ndisp: int, *, min_disp: int = 0, params: Params | None = None,
+    left, right, ndisp: int | None, *, min_disp: int = 0, params: Params | None = None,
     buckets: ShapeBuckets | None = None, plan: ExecutionPlan | None = None,
     check_memory: bool = True,
 ) -> np.ndarray:
@@ -40,8 +41,10 @@ def match(
     ----------
     left, right : array_like (H, W) or (H, W, 1|3|4), uint8, uint16 or float in [0, 1]
         Rectified pair; the left image is the reference view.
-    ndisp : int
+    ndisp : int or None
         Disparities searched: 0 .. ndisp - 1 (Middlebury ``calib.txt`` ``ndisp``); 1 <= ndisp < W.
+        None: the range (``min_disp`` too) is estimated from a coarse pass over the pair
+        (:func:`sswjax.api.auto_range.estimate_range`; call it to see the range it picks).
     min_disp : int, optional
         First disparity searched (default 0; may be negative): the range is ``min_disp ..
         min_disp + ndisp - 1`` and must meet ``-(W - 1) .. W - 1`` (see :mod:`sswjax.api.ranges`).
@@ -102,7 +105,7 @@ class Matched(NamedTuple):
 
 
 def match_with_confidence(
-    left, right, ndisp: int, *, min_disp: int = 0, params: Params | None = None,
+    left, right, ndisp: int | None, *, min_disp: int = 0, params: Params | None = None,
     buckets: ShapeBuckets | None = None, plan: ExecutionPlan | None = None,
     check_memory: bool = True, low_confidence: float = DEFAULT_THRESHOLD,
     measure: str = DEFAULT_MEASURE,
@@ -185,6 +188,11 @@ def match_graph(left, right, ndisp, *, graph, min_disp: int = 0, params: Params 
     """
     params = default_params() if params is None else check_params(params)
     plan = resolve_plan(plan, buckets)
+    if ndisp is None:  # estimated: sswjax.api.auto_range
+        if min_disp:
+            raise ValueError("min_disp goes with a count of disparities: ndisp=None estimates "
+                             "both")
+        min_disp, ndisp = estimate_range(left, right)
     left, right = checked_pair(left, right, ndisp, params)
     check_disparity_range(left.shape[1], ndisp, min_disp)
     true_width = left.shape[1]
