@@ -1,0 +1,61 @@
+"""The gated joint bilateral mean of a disparity map against a per-pixel loop reference."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sswjax.stages.smoothing import gated_bilateral_mean
+
+
+def _reference(disparity: np.ndarray, guide: np.ndarray, radius: int, gate: float,
+               scale: float) -> np.ndarray:
+    """The definition written pixel by pixel, the window clamped to the image (edge
+    replication)."""
+    height, width = disparity.shape
+    out = np.zeros_like(disparity, dtype=np.float64)
+    for y in range(height):
+        for x in range(width):
+            total = weights = 0.0
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    qy, qx = min(max(y + dy, 0), height - 1), min(max(x + dx, 0), width - 1)
+                    if abs(disparity[qy, qx] - disparity[y, x]) >= gate:
+                        continue
+                    weight = np.exp(-np.abs(guide[qy, qx] - guide[y, x]).sum() / scale)
+                    total += weight * disparity[qy, qx]
+                    weights += weight
+            out[y, x] = total / weights
+    return out
+
+
+@pytest.mark.parametrize("shape,radius,gate,scale", [((9, 11, 3), 1, 1.0, 0.1),
+                                                     ((7, 6, 1), 2, 0.6, 0.05),
+                                                     ((5, 13, 3), 3, 2.5, 1.0)])
+def test_matches_the_loop_reference(shape, radius, gate, scale):
+    rng = np.random.default_rng(sum(shape) + radius)
+    guide = rng.random(shape).astype(np.float32)
+    # Two surfaces (a ramp and a plateau) with noise: some neighbours pass the gate, some not.
+    disparity = np.where(np.arange(shape[1]) < shape[1] // 2, np.arange(shape[1]) * 0.4, 9.0)
+    disparity = (disparity + rng.normal(0, 0.5, shape[:2])).astype(np.float32)
+    got = gated_bilateral_mean(jnp.asarray(disparity), jnp.asarray(guide), radius=radius,
+                               gate=gate, colour_scale=scale)
+    np.testing.assert_allclose(np.asarray(got), _reference(disparity, guide, radius, gate, scale),
+                               rtol=1e-5, atol=1e-5)
+
+
+def test_keeps_depth_edges_and_planes():
+    """A step larger than the gate stays a step, and a plane (no step) is left as it is."""
+    guide = jnp.zeros((6, 10, 1))
+    step = jnp.where(jnp.arange(10) < 5, 2.0, 8.0)[None].repeat(6, 0)
+    out = gated_bilateral_mean(step, guide, radius=2, gate=1.0, colour_scale=0.1)
+    np.testing.assert_array_equal(np.asarray(out), np.asarray(step))
+    plane = (0.3 * jnp.arange(10)[None] + 0.1 * jnp.arange(6)[:, None]).astype(jnp.float32)
+    out = gated_bilateral_mean(plane, guide, radius=1, gate=1.0, colour_scale=0.1)
+    np.testing.assert_allclose(np.asarray(out)[1:-1, 1:-1], np.asarray(plane)[1:-1, 1:-1],
+                               atol=1e-5)
+
+
+def test_refuses_a_guide_of_another_size():
+    with pytest.raises(ValueError, match="guide"):
+        gated_bilateral_mean(jnp.zeros((4, 5)), jnp.zeros((4, 6, 3)), radius=1, gate=1.0,
+                             colour_scale=0.1)
