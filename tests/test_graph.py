@@ -352,3 +352,18 @@ def test_to_float_image_errors():
         to_float_image(np.zeros((2, 2, 2), np.uint8), name="left")
     with pytest.raises(ValueError, match="HxW"):
         to_float_image(np.zeros(4, np.uint8))
+
+
+@pytest.mark.parametrize("preset", ["paper", "fast"])
+def test_smoothing_is_the_last_stage_on_the_full_resolution_map(pair, preset):
+    """The graph with the smoothing = the stage applied to the graph's map without it (for
+    coarse-to-fine too: once, at full resolution), so benchmarks/smoothing.py may apply it to
+    stored maps; and it changes the map."""
+    left, right = map(jnp.asarray, pair)
+    smoothing = sswjax.config.GatedBilateralSmoothing(gate=2.0)
+    base = sswjax.preset(preset).replace(smoothing=None)
+    plain = ssw_disparity(left, right, base, ndisp=NDISP)
+    smoothed = ssw_disparity(left, right, base.replace(smoothing=smoothing), ndisp=NDISP)
+    np.testing.assert_allclose(np.asarray(smoothed),
+                               np.asarray(smoothing.smooth(plain, left, NDISP)), atol=1e-5)
+    assert not np.allclose(np.asarray(smoothed), np.asarray(plain))

@@ -29,14 +29,14 @@ from sswjax.config.optimizer import HalfResolutionSemiGlobal, Optimizer, SemiGlo
 from sswjax.config.params import Params
 from sswjax.config.parts import SLOTS, Part, kinds, register
 from sswjax.config.presets import DEFAULT_PRESET, PRESETS, default_params, preset
-from sswjax.config.refinement import CoarseToFine, SideWindowMedian
+from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
 from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
 from sswjax.config.serialize import load_params, params_from_dict, read_params_file, save_params
 from sswjax.config.validate import check_params
 
 __all__ = [
     "Aggregator", "BackgroundFill", "BilateralAggregation", "BoxAggregation", "CoarseToFine",
-    "ConfigError", "DEFAULT_PRESET", "Fill", "GuidedAggregation", "HalfResolutionSemiGlobal",
+    "ConfigError", "DEFAULT_PRESET", "Fill", "GatedBilateralSmoothing", "GuidedAggregation", "HalfResolutionSemiGlobal",
     "IteratedGuidedAggregation", "LeftBandFill", "LeftRightCheck", "LocalContrast",
     "MatchingCost", "MedianAggregation", "Optimizer", "Option", "PRESETS", "Params", "Part",
     "PlaneFill", "Preprocessor", "SLOTS", "SemiGlobal", "SideWindowAggregation",

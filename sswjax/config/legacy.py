@@ -25,8 +25,13 @@ from typing import NamedTuple
 from sswjax.config.fields import ConfigError, as_float, check_value, default_of, option_fields
 from sswjax.config.parts import SLOTS, kinds
 
-__all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names",
+__all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "NEWER_SLOTS",
+           "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names",
            "to_flat", "translate", "unused_error"]
+
+NEWER_SLOTS = ("smoothing",)
+"""Stages added after the flat names: a flat file describes a configuration without them (they
+are off), and a change by flat names keeps them as they are."""
 
 STATIC_DEFAULTS: dict = {
     "census_height": 7, "census_width": 9, "n_segments": 2000, "slic_iterations": 10,

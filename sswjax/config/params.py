@@ -20,11 +20,11 @@ from sswjax.config.aggregation import Aggregator, SideWindowAggregation
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
-from sswjax.config.legacy import (EXECUTION_DEFAULTS, from_flat, old_names, to_flat, translate,
-                                  unused_error)
+from sswjax.config.legacy import (EXECUTION_DEFAULTS, NEWER_SLOTS, from_flat, old_names, to_flat,
+                                  translate, unused_error)
 from sswjax.config.optimizer import Optimizer
 from sswjax.config.parts import SLOTS, kinds
-from sswjax.config.refinement import CoarseToFine, SideWindowMedian
+from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
 from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
 
 __all__ = ["Params"]
@@ -60,6 +60,7 @@ class Params:
     fill: Fill | None = dataclasses.field(default_factory=BackgroundFill)
     refinement: SideWindowMedian | None = dataclasses.field(default_factory=SideWindowMedian)
     coarse: CoarseToFine | None = None
+    smoothing: GatedBilateralSmoothing | None = None
 
     def stages(self) -> Iterator[tuple[str, object]]:
         """``(slot, configuration or None)`` of every stage, in pipeline order."""
@@ -116,12 +117,14 @@ def _replace_flat(params: Params, flat: Mapping) -> Params:
         raise ConfigError(execution[0], f"{execution[0]} is how a call runs, not a parameter: "
                           f"pass plan=sswjax.ExecutionPlan({execution[0]}=...) to sswjax.match")
     try:
-        reading = from_flat({**to_flat(dict(params.stages())), **flat}, explicit=flat)
+        slots = dict(params.stages())
+        newer = {slot: slots.pop(slot) for slot in NEWER_SLOTS}
+        reading = from_flat({**to_flat(slots), **flat}, explicit=flat)
     except ConfigError as error:
         raise translate(error) from None
     if reading.unused:
         raise unused_error(reading.unused)
-    return Params(**reading.slots)
+    return Params(**{**reading.slots, **newer})
 
 
 def _slot_value(params: Params, slot: str, value):

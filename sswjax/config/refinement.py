@@ -1,17 +1,23 @@
-"""Configurations of the last stages: the median over the disparity map and coarse-to-fine.
+"""Configurations of the last stages: the median over the disparity map, coarse-to-fine and
+the smoothing of the finished map.
 
-The graph reads these options (:mod:`sswjax.graph.refine`, :mod:`sswjax.graph.coarse`); the
-stage functions are :func:`~sswjax.stages.filters.side_window_median_filter`,
-:func:`~sswjax.stages.pyramid.halve_image` and
-:func:`~sswjax.stages.upsampling.upsample_disparity`.
+The graph reads these options (:mod:`sswjax.graph.refine`, :mod:`sswjax.graph.coarse`,
+:mod:`sswjax.graph.match`); the stage functions are
+:func:`~sswjax.stages.filters.side_window_median_filter`,
+:func:`~sswjax.stages.pyramid.halve_image`,
+:func:`~sswjax.stages.upsampling.upsample_disparity` and
+:func:`~sswjax.stages.smoothing.gated_bilateral_mean`.
 """
 
 from __future__ import annotations
 
+import jax.numpy as jnp
+
 from sswjax.config.fields import ConfigError, is_set, option
 from sswjax.config.parts import Part, register
+from sswjax.stages.smoothing import gated_bilateral_mean
 
-__all__ = ["CoarseToFine", "SideWindowMedian"]
+__all__ = ["CoarseToFine", "GatedBilateralSmoothing", "SideWindowMedian"]
 
 
 @register("refinement", "side-window-median")
@@ -43,3 +49,25 @@ class CoarseToFine(Part):
         if self.median_radius == 0 and is_set(self, "median_iterations"):
             raise ConfigError("coarse.median_iterations", "parameter coarse.median_iterations "
                               "acts only with coarse.median_radius > 0")
+
+
+@register("smoothing", "gated-bilateral")
+class GatedBilateralSmoothing(Part):
+    """The finished map averaged over each pixel's neighbours on its own surface: weighted by
+    colour, neighbours more than ``gate`` pixels away left out; at full resolution, last. Turns
+    the integer steps of a slanted surface back into its ramp (bad 1.0 and 0.5)."""
+
+    # (2r + 1)^2 shifted windows, unrolled: r <= 7 keeps the graph small.
+    radius: int = option(3, static=True, low=1, high=7, help="window radius")
+    gate: float = option(1.0, above=0, help="largest disparity difference (pixels) of a "
+                         "neighbour that is averaged")
+    colour_scale: float = option(0.1, above=0, help="scale of the colour weight (sum of "
+                                 "absolute channel differences, intensities in [0, 1])")
+    iterations: int = option(1, static=True, low=1, high=4, help="passes of the filter")
+
+    def smooth(self, disparity, guide, limit):
+        """float32 (H, W) map and (H, W, C) left image -> the smoothed map in [0, limit - 1]."""
+        for _ in range(self.iterations):
+            disparity = gated_bilateral_mean(disparity, guide, radius=self.radius,
+                                             gate=self.gate, colour_scale=self.colour_scale)
+        return jnp.clip(disparity, 0, limit - 1)

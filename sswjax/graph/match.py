@@ -19,6 +19,7 @@ from sswjax._checks import check_floating, check_positive_int, check_rank, check
 from sswjax.config import Params
 from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
+from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import (Selected, aggregate_slices, prepare_scene, select_optimised,
                                  streamed_winners)
 from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
@@ -73,18 +74,25 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
     as soon as it is aggregated.
     """
     check_pair(left, right, ndisp)
+    limit = ndisp if valid_ndisp is None else valid_ndisp
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
-        return match_coarse_to_fine(left, right, params, ndisp, valid_ndisp, inner)
-    limit = ndisp if valid_ndisp is None else valid_ndisp
-    scene = prepare_scene(left, right, params)
-    if params.optimizer is None:
-        selected = Selected(streamed_winners(scene, params, ndisp=ndisp, limit=limit,
-                                             chunk=chunk))
+        # The smoothing acts once, on the full-resolution map.
+        disparity, cues = match_coarse_to_fine(left, right, params.replace(smoothing=None),
+                                               ndisp, valid_ndisp, inner)
     else:
-        selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                                    chunk=chunk)
-    return refine(selected, scene, params, limit)
+        scene = prepare_scene(left, right, params)
+        if params.optimizer is None:
+            selected = Selected(streamed_winners(scene, params, ndisp=ndisp, limit=limit,
+                                                 chunk=chunk))
+        else:
+            selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
+                                        chunk=chunk)
+        disparity, cues = refine(selected, scene, params, limit)
+    if params.smoothing is not None:
+        with scope(Stage.SMOOTHING):
+            disparity = params.smoothing.smooth(disparity, left, limit)
+    return disparity, cues
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
