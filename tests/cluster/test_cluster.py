@@ -103,9 +103,12 @@ def test_a_worker_killed_mid_run_loses_nothing(client, tmp_path, texture, cache)
     deadline = time.monotonic() + 120
     while not list(out.glob("*.pfm")) and time.monotonic() < deadline:
         time.sleep(0.01)
-    busy = client.processing()
+    busy = {}
+    while not any(busy.values()) and time.monotonic() < deadline:  # a worker holding a task
+        busy = client.processing()
+        time.sleep(0.005)
     victim = max(busy, key=lambda address: len(busy[address]))
-    assert busy[victim]                                         # it holds tasks when it dies
+    assert busy[victim], "no worker was holding a task to kill"
     os.kill(pids[victim], signal.SIGKILL)                       # mid-run, whatever it holds
     killed_at = len(list(out.glob("*.pfm")))
     run.join(timeout=300)
