@@ -34,6 +34,7 @@ from sswjax.api.rectify import rectification, rectified_calibration
 from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, gigabytes
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
+from sswjax.cli.distributed import cluster_plan
 from sswjax.cli.folders import folder_pairs, image_size, match_folders
 from sswjax.cli.geometry import (CLOUD_FORMATS, add_geometry_options, calibration,
                                  depth_formats, depth_range, geometry_writers)
@@ -180,6 +181,7 @@ def run_match(args: argparse.Namespace) -> int:
     calib = calibration(args)
     params, execution = params_from_args(args)
     plan = guard_pair(args, params, plan_from_args(args, execution))
+    plan = cluster_plan(args, plan)  # --workers / --scheduler: the tiles are tasks
     stereo = None
     if args.rectify is not None:
         stereo = stereo_rig(args.rectify, image_size(args.left), cameras=args.cameras)
