@@ -324,14 +324,26 @@ def test_folder_rectification(rig, tmp_path):
     assert rectify_images(argparse.Namespace(rectify=None), left, right)[0] is left
 
 
-def test_match_folders_with_rectify_refused_for_now(rig, tmp_path, run_cli):
-    # until sswjax.cli.folders rectifies each pair: one line, nothing written
+def test_match_folders_with_rectify(rig, tmp_path, run_cli):
+    """Two folders with --rectify: each pair rectified as a single pair is, the same map; with
+    workers it is refused in one line."""
     folder, left, right, _ = rig
     for side, image in (("L", left), ("R", right)):
         (tmp_path / side).mkdir()
-        cv2.imwrite(str(tmp_path / side / "a.png"), image)
-    code, _, stderr = run_cli(["match", tmp_path / "L", tmp_path / "R", "--rectify",
-                               folder / "stereo.yaml", "--ndisp", "48", "-o", tmp_path / "out"])
+        for name in ("a.png", "b.png"):
+            cv2.imwrite(str(tmp_path / side / name), image)
+    calib = folder / "stereo.yaml"
+    code, _, stderr = run_cli(["match", tmp_path / "L", tmp_path / "R", "--rectify", calib,
+                               "--ndisp", "48", "--preset", "fast", "-o", tmp_path / "out"])
+    assert code == 0, stderr
+    code, _, stderr = run_cli(["match", tmp_path / "L" / "a.png", tmp_path / "R" / "a.png",
+                               "--rectify", calib, "--ndisp", "48", "--preset", "fast",
+                               "-o", tmp_path / "single.pfm"])
+    assert code == 0, stderr
+    single = read_pfm(tmp_path / "single.pfm")
+    for name in ("a", "b"):
+        np.testing.assert_array_equal(read_pfm(tmp_path / "out" / f"{name}.pfm"), single)
+    code, _, stderr = run_cli(["match", tmp_path / "L", tmp_path / "R", "--rectify", calib,
+                               "--ndisp", "48", "--workers", "2", "-o", tmp_path / "out2"])
     assert code == 2 and stderr.count("\n") == 1, stderr
-    assert "--rectify takes one pair for now" in stderr
-    assert not (tmp_path / "out").exists()
+    assert "--rectify matches folders in this process" in stderr

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import os
 import sys
 import time
@@ -41,6 +42,7 @@ from sswjax.cli.distributed import (
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import params_from_args, plan_from_args
 from sswjax.cli.record import RunRecord
+from sswjax.cli.rectify import rectify_images
 from sswjax.cluster.folders import match_pairs
 from sswjax.cluster.pairs import IMAGE_SUFFIXES, FolderPair, folder_pairs, image_size
 from sswjax.cluster.tasks import BAD_INPUT, PairJob, PairOutcome
@@ -82,13 +84,19 @@ def _buckets(args: argparse.Namespace, pairs: list[FolderPair]) -> ShapeBuckets 
     return ShapeBuckets()
 
 
-def _in_process(jobs: list[PairJob], *, ndisp: int, min_disp: int, params, plan, bar):
-    """The outcome of each job matched here, one after the other (the name on the bar)."""
+def _unchanged(left, right):
+    return left, right
+
+
+def _in_process(jobs: list[PairJob], *, ndisp: int, min_disp: int, params, plan, bar,
+                rectify=_unchanged):
+    """The outcome of each job matched here, one after the other (the name on the bar);
+    ``rectify(left, right)`` gives the pair matched (``--rectify``: the rectified one)."""
     for job in jobs:
         bar.set_postfix_str(job.name)
         start = time.perf_counter()
         try:
-            left, right = read_image(job.left), read_image(job.right)
+            left, right = rectify(read_image(job.left), read_image(job.right))
             disparity = match(left, right, ndisp, min_disp=min_disp, params=params, plan=plan,
                               check_memory=False)  # guard_memory checked it
             write_pfm(job.output, disparity)
@@ -118,6 +126,9 @@ def _check_arguments(args: argparse.Namespace) -> Path:
     if not out.parent.is_dir():
         raise ValueError(f"output folder does not exist: {out.parent}")
     if wants_cluster(args):
+        if getattr(args, "rectify", None) is not None:
+            raise ValueError("--rectify matches folders in this process: drop --workers / "
+                             "--scheduler, or rectify the pairs first with sswjax rectify")
         require_cluster(args)
     return out
 
@@ -152,6 +163,8 @@ def match_folders(args: argparse.Namespace) -> int:
                 "buckets": None if buckets is None else list(buckets)}
     if plan.tile:
         settings["tile"] = plan.tile
+    if getattr(args, "rectify", None) is not None:
+        settings["rectify"] = [str(path) for path in args.rectify]
     narrowest = min(pairs, key=lambda p: p.size[1])
     if min_disp == 0 and not 1 <= args.ndisp < narrowest.size[1]:
         raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
@@ -180,7 +193,8 @@ def match_folders(args: argparse.Namespace) -> int:
                                      unit="pair", file=sys.stderr) as bar:
             if client is None:
                 outcomes = _in_process(todo, ndisp=args.ndisp, min_disp=min_disp, params=params,
-                                       plan=plan, bar=bar)
+                                       plan=plan, bar=bar,
+                                       rectify=functools.partial(rectify_images, args))
             else:
                 workers = len(client.nthreads())
                 if remote:

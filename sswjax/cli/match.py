@@ -131,9 +131,6 @@ def _folders(args: argparse.Namespace) -> int:
     if args.ndisp == AUTO:
         raise ValueError("--ndisp auto takes one pair: with folders give --ndisp N or "
                          "--depth-range ZMIN ZMAX")
-    if args.rectify is not None:  # until sswjax.cli.folders calls cli.rectify.rectify_images
-        raise ValueError("--rectify takes one pair for now: rectify the folders' pairs with "
-                         "sswjax rectify first")
     if args.depth_range is not None and os.path.isdir(args.left) and os.path.isdir(args.right):
         pairs = folder_pairs(args.left, args.right)
         narrowest = min(pair.size[1] for pair in pairs)
