@@ -1,0 +1,140 @@
+"""What a first call costs: fresh processes, with an empty and with a warm persistent cache.
+
+For each preset, in new Python processes (nothing shared with this one but the files):
+
+1. ``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` from the command line, timed from outside
+   (process start to exit), first with an empty compilation cache (a new folder), then again
+   with that folder warm.
+2. The same pair through the API, the phases timed inside the process: ``import sswjax``,
+   tracing and lowering of the graph (``jax.jit(...).lower``), compiling it (or loading it from
+   the persistent cache), the first run, and a warm run.
+
+Each measurement is repeated ``--repeat`` times in fresh processes and the median reported;
+the machine's noise shows in the spread, printed beside it.
+
+    python benchmarks/cold_start.py [--data ../shared/data] [--scene Motorcycle]
+                                    [--presets accurate fast] [--repeat 3] [-o benchmarks/results]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _report import write_report  # noqa: E402
+
+PHASES = ("import", "read", "trace", "compile", "first run", "warm run")
+
+_CHILD = r"""
+import json, sys, time
+start = time.perf_counter()
+import jax, numpy as np
+import sswjax
+from sswjax.api.images import prepare_pair
+from sswjax.data.io import read_image
+from sswjax.graph import ssw_disparity
+from sswjax.runtime.compilation import enable_compilation_cache
+times = {"import": time.perf_counter() - start}
+enable_compilation_cache(path=sys.argv[4])
+t = time.perf_counter()
+left, right = prepare_pair(read_image(sys.argv[1]), read_image(sys.argv[2]))
+left, right = jax.numpy.asarray(left), jax.numpy.asarray(right)
+params, ndisp = sswjax.preset(sys.argv[5]), int(sys.argv[3])
+times["read"] = time.perf_counter() - t
+t = time.perf_counter()
+lowered = ssw_disparity.lower(left, right, params, ndisp=ndisp)
+times["trace"] = time.perf_counter() - t
+t = time.perf_counter()
+compiled = lowered.compile()
+times["compile"] = time.perf_counter() - t
+t = time.perf_counter()
+np.asarray(compiled(left, right, params))
+times["first run"] = time.perf_counter() - t
+t = time.perf_counter()
+np.asarray(compiled(left, right, params))
+times["warm run"] = time.perf_counter() - t
+print(json.dumps(times))
+"""
+
+
+def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -> float:
+    """Wall time of one ``sswjax match`` in a new process, with ``cache`` as its XLA cache."""
+    with tempfile.TemporaryDirectory() as out:
+        env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
+        command = [sys.executable, "-m", "sswjax.cli", "match", str(left), str(right),
+                   "--ndisp", str(ndisp), "--preset", preset, "-o", f"{out}/d.pfm"]
+        start = time.perf_counter()
+        subprocess.run(command, env=env, check=True, capture_output=True)
+        return time.perf_counter() - start
+
+
+def api_phases(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -> dict:
+    """The phases of a first API call in a new process (seconds per phase, and the total)."""
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _CHILD, str(left), str(right), str(ndisp),
+                           str(cache), preset], check=True, capture_output=True, text=True)
+    phases = json.loads(done.stdout.strip().splitlines()[-1])
+    phases["process"] = time.perf_counter() - start
+    return phases
+
+
+def spread(values: list[float]) -> str:
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+
+def measure(left: Path, right: Path, ndisp: int, preset: str, repeat: int) -> list[dict]:
+    """Rows of the report for one preset: CLI and API, empty and warm cache."""
+    rows = []
+    for surface in ("CLI", "API"):
+        for state in ("empty", "warm"):
+            runs = []
+            for _ in range(repeat):
+                with tempfile.TemporaryDirectory() as cache:
+                    once = cli_seconds if surface == "CLI" else api_phases
+                    first = once(left, right, ndisp, preset, Path(cache))
+                    runs.append(first if state == "empty" else
+                                once(left, right, ndisp, preset, Path(cache)))
+            row = {"preset": preset, "surface": surface, "cache": state}
+            if surface == "CLI":
+                row["total"] = spread(runs)
+            else:
+                row.update({phase: spread([r[phase] for r in runs]) for phase in PHASES})
+                row["total"] = spread([r["process"] for r in runs])
+            rows.append(row)
+            print(row, flush=True)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=Path(os.environ.get(
+        "SSWJAX_DATA", Path(__file__).resolve().parents[2] / "shared" / "data")))
+    parser.add_argument("--scene", default="Motorcycle")
+    parser.add_argument("--presets", nargs="+", default=["accurate", "fast"])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("-o", "--output", type=Path, default=Path(__file__).parent / "results")
+    args = parser.parse_args()
+    folder = args.data / "MiddEval3" / "trainingQ" / args.scene
+    calib = dict(line.strip().split("=", 1) for line in open(folder / "calib.txt") if "=" in line)
+    left, right, ndisp = folder / "im0.png", folder / "im1.png", int(calib["ndisp"])
+    rows = [row for preset in args.presets
+            for row in measure(left, right, ndisp, preset, args.repeat)]
+    keys = ["preset", "surface", "cache", *PHASES, "total"]
+    header = "| " + " | ".join(keys) + " |\n|" + "---|" * len(keys) + "\n"
+    table = (f"First call on trainingQ {args.scene} ({ndisp} disparities), fresh processes, "
+             f"seconds, median (min-max) of {args.repeat}\n\n" + header
+             + "\n".join("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |"
+                         for row in rows))
+    write_report(args.output, "cold_start", table, rows, keys)
+
+
+if __name__ == "__main__":
+    main()
