@@ -257,7 +257,12 @@ def test_cli_depth_png(small_pair, tmp_path, run_cli):
     expected = np.where(np.isfinite(depth) & (depth * 1000 < 65535.5),
                         np.round(depth * 1000) / 1000, np.inf).astype(np.float32)
     assert np.isfinite(expected).mean() > 0.5
-    np.testing.assert_allclose(written, expected, rtol=1e-6)
+    # One step of the scale apart at most: a depth at a half step may round either way in the
+    # writer's float32 and this float64 reference.
+    np.testing.assert_array_equal(np.isfinite(written), np.isfinite(expected))
+    finite = np.isfinite(expected)
+    np.testing.assert_allclose(written[finite], expected[finite], rtol=0, atol=1e-3 + 1e-6)
+    assert (written[finite] == expected[finite]).mean() > 0.99
 
 
 def test_cli_calib_file(small_pair, tmp_path, run_cli):
