@@ -12,10 +12,13 @@ written all or nothing (:func:`sswjax._files.atomic_outputs`) by the writers of
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import shlex
+import signal
 import sys
 import textwrap
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -27,7 +30,8 @@ from sswjax.data.scaled import write_scaled_disparity
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "HelpFormatter", "Interrupted",
            "Parser", "Writer", "check_output_files", "check_outputs", "command_line",
-           "disparity_writers", "gigabytes", "resume_command", "write_disparity_map"]
+           "disparity_writers", "gigabytes", "resume_command", "uninterrupted",
+           "write_disparity_map"]
 
 Writer = Callable[[Path], object]
 """What writes one output: a function of the (temporary) file to write."""
@@ -74,6 +78,27 @@ class Parser(argparse.ArgumentParser):
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C, carrying the one-line message shown to the user (what was kept, how to resume)."""
+
+
+@contextlib.contextmanager
+def uninterrupted():
+    """Within it, Ctrl-C waits: a SIGINT received is raised as ``KeyboardInterrupt`` once the
+    block is done, so a result's files, its record and its count are kept together (the
+    interruption's message then counts exactly what ``--resume`` skips). Outside the main
+    thread, where Python cannot install a handler, the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    previous = signal.signal(signal.SIGINT, lambda number, frame: received.append(number))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received and callable(previous):
+        previous(signal.SIGINT, None)  # Python's default handler raises KeyboardInterrupt
+    elif received and previous == signal.SIG_DFL:
+        raise KeyboardInterrupt
 
 
 def resume_command(argv: list[str]) -> str:

@@ -27,7 +27,7 @@ from tqdm import tqdm
 
 from sswjax._files import InputError, atomic_output, first_line
 from sswjax._version import __version__
-from sswjax.cli.common import Interrupted, command_line, resume_command
+from sswjax.cli.common import Interrupted, command_line, resume_command, uninterrupted
 from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
                                 params_from_args)
 from sswjax.cli.record import RunRecord
@@ -197,9 +197,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
                                                       scoring=scoring):
                     i = pending[j]
                     if folders[i] is not None:
-                        _write_scene_result(folders[i], tag, result)
-                        record.finished(f"{name}/{scenes[i].name}")
-                        saved += 1
+                        with uninterrupted():  # files, record and count kept together
+                            _write_scene_result(folders[i], tag, result)
+                            record.finished(f"{name}/{scenes[i].name}")
+                            saved += 1
                     rows[i] = result
                     bar.update(1)
             if args.resume:
