@@ -45,6 +45,15 @@ GRID = ['null', '{"gate": 1.0}', '{"gate": 2.0}', '{"gate": 3.0}', '{"gate": 4.0
         '{"gate": 2.0, "iterations": 2}']
 
 
+def _table(rows: list[dict]) -> str:
+    """Markdown table of ``rows`` (their keys as the header; floats to 3 decimals)."""
+    keys = list(rows[0])
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    lines += ["| " + " | ".join(f"{row[k]:.3f}" if isinstance(row[k], float) else str(row[k])
+                                for k in keys) + " |" for row in rows]
+    return "\n".join(lines)
+
+
 @jax.jit
 def _smooth(smoothing, disparity, left, limit):
     return smoothing.smooth(disparity, left, limit)
@@ -88,23 +97,14 @@ def main(argv=None) -> int:
                               if region in m}
                     rows[text][f"{set_name} {key} {region}"] = _average(values, scoring)
     rows = list(rows.values())
-    keys = list(rows[0])
-    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
-    lines += ["| " + " | ".join(row[k] if k == "config" else f"{row[k]:.3f}" for k in keys) + " |"
-              for row in rows]
-    write_report(args.output, "smoothing", "\n".join(lines), rows, keys)
+    write_report(args.output, "smoothing", _table(rows), rows, list(rows[0]))
     errors = {row["config"]: {
         "trainingQ": (row["trainingQ bad2.0 nonocc"] + row["trainingQ bad2.0 all"]) / 2,
         "KITTI2012": row["KITTI2012 bad2.0 all"],
         "Middlebury2001": row["Middlebury2001 bad2.0 all"]} for row in rows}
-    folds = held_out_rows(errors)
-    lines = ["| " + " | ".join(folds[0]) + " |", "|" + "---|" * len(folds[0])]
-    lines += ["| " + " | ".join(row.values()) + " |" for row in folds]
-    write_report(args.output, "held_out", "\n".join(lines), folds, list(folds[0]))
-    folds = thresholds_folds(rows)
-    lines = ["| " + " | ".join(folds[0]) + " |", "|" + "---|" * len(folds[0])]
-    lines += ["| " + " | ".join(row.values()) + " |" for row in folds]
-    write_report(args.output, "held_out_thresholds", "\n".join(lines), folds, list(folds[0]))
+    for stem, folds in (("held_out", held_out_rows(errors)),
+                        ("held_out_thresholds", thresholds_folds(rows))):
+        write_report(args.output, stem, _table(folds), folds, list(folds[0]))
     return 0
 
 

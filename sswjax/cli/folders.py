@@ -84,14 +84,10 @@ def _buckets(args: argparse.Namespace, pairs: list[FolderPair]) -> ShapeBuckets 
     return ShapeBuckets()
 
 
-def _unchanged(left, right):
-    return left, right
-
-
-def _in_process(jobs: list[PairJob], *, ndisp: int, min_disp: int, params, plan, bar,
-                rectify=_unchanged):
+def _in_process(jobs: list[PairJob], *, ndisp: int, min_disp: int, params, plan, bar, rectify):
     """The outcome of each job matched here, one after the other (the name on the bar);
-    ``rectify(left, right)`` gives the pair matched (``--rectify``: the rectified one)."""
+    ``rectify(left, right)`` gives the pair matched (with ``--rectify`` the rectified one,
+    else the pair as read)."""
     for job in jobs:
         bar.set_postfix_str(job.name)
         start = time.perf_counter()
