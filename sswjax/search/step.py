@@ -26,6 +26,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 from sswjax.config import Params
 from sswjax.runtime.devices import BATCH_AXIS, device_mesh, pad_batch
 from sswjax.search.objective import batch_loss
+from sswjax.search.surrogates import DEFAULT_SURROGATE
 from sswjax.search.space import all_raw_keys
 
 __all__ = ["freeze_labels", "make_optimizer", "make_update_step", "shard_crops"]
@@ -91,7 +92,8 @@ def make_optimizer(learning_rate: float, *, frozen=()) -> optax.GradientTransfor
     )
 
 
-def make_update_step(optimizer, *, base: Params, ndisp: int, devices=None):
+def make_update_step(optimizer, *, base: Params, ndisp: int, devices=None,
+                     surrogate: str = DEFAULT_SURROGATE):
     """``(raw, opt_state, batch) -> (raw, opt_state, loss)``: one jitted optax step, sharded.
 
     ``batch`` (module docstring) is split over a 1-D mesh of ``devices`` (default: all
@@ -99,7 +101,8 @@ def make_update_step(optimizer, *, base: Params, ndisp: int, devices=None):
     of the device count; a multiple wastes nothing); ``raw`` and ``opt_state`` are replicated,
     so ``jit`` partitions the vmapped loss and its gradient over the devices and all-reduces
     the sums. The returned ``raw`` and ``opt_state`` are replicated, the loss a float32 scalar.
-    ``base`` (its values and structure) and ``ndisp`` are closed over: another base compiles
+    ``base`` (its values and structure), ``ndisp`` and ``surrogate`` (a name of
+    :data:`sswjax.search.surrogates.SURROGATES`) are closed over: another base compiles
     another step. Every key of ``raw`` gets its gradient; to hold some fixed, build
     ``optimizer`` with :func:`make_optimizer` (``frozen=...``).
     """
@@ -107,7 +110,7 @@ def make_update_step(optimizer, *, base: Params, ndisp: int, devices=None):
     replicated = NamedSharding(mesh, PartitionSpec())
 
     def objective(raw, batch):
-        return batch_loss(raw, *batch, base=base, ndisp=ndisp)
+        return batch_loss(raw, *batch, base=base, ndisp=ndisp, surrogate=surrogate)
 
     @functools.partial(jax.jit, out_shardings=replicated)
     def sharded_step(raw, opt_state, batch):

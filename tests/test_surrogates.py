@@ -1,0 +1,87 @@
+"""The search's surrogates against what they stand in for, its settings, and its folds."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sswjax.data.layouts import StereoScene
+from sswjax.search import SURROGATES, SearchSettings, folds, surrogate
+from sswjax.search.surrogates import WINDOW_FLOOR, soft_bad, window_nll
+
+
+
+def _volume(winners, ndisp=16, depth=5.0):
+    """A (D, 1, N) cost volume with one clear minimum per pixel at ``winners``."""
+    d = np.arange(ndisp, dtype=np.float32)[:, None, None]
+    return jnp.asarray(depth * np.minimum(np.abs(d - np.asarray(winners, np.float32)), 1.0))
+
+
+def test_soft_bad_tends_to_the_bad_pixel_count():
+    winners = np.array([[3, 7, 10, 12]])
+    truth = jnp.asarray([[3.2, 8.5, 12.5, 12.0]], jnp.float32)  # errors 0.2, 1.5, 2.5, 0
+    loss = soft_bad(_volume(winners), truth, temperature=0.01, threshold=2.0, width=0.01)
+    assert np.allclose(np.asarray(loss), [[0, 0, 1, 0]], atol=1e-3)
+    loss = soft_bad(_volume(winners), truth, temperature=0.01, threshold=1.0, width=0.01)
+    assert np.allclose(np.asarray(loss), [[0, 1, 1, 0]], atol=1e-3)
+
+
+def test_window_nll_asks_for_mass_near_the_truth_not_a_mean_between_modes():
+    truth = jnp.asarray([[6.0]], jnp.float32)
+    right = window_nll(_volume([[6]]), truth, temperature=0.1, radius=1.0)
+    assert float(right[0, 0]) < 1e-3
+    d = np.arange(16, dtype=np.float32)[:, None, None]
+    two_modes = jnp.asarray(5.0 * np.minimum(np.minimum(np.abs(d - 2), np.abs(d - 10)), 1.0))
+    wrong = window_nll(two_modes, truth, temperature=0.1, radius=1.0)
+    assert float(wrong[0, 0]) == pytest.approx(-np.log(WINDOW_FLOOR), rel=1e-3)
+    # the soft-argmin of the same volume sits at the truth: a smooth L1 would call it right
+    assert float(SURROGATES["soft_l1"](two_modes, truth, temperature=0.1)[0, 0]) < 0.01
+
+
+@pytest.mark.parametrize("name", sorted(SURROGATES))
+def test_every_surrogate_has_a_finite_gradient(name):
+    volume = _volume([[3, 7, 10]]) + jnp.asarray(np.random.default_rng(0).random((16, 1, 3)),
+                                                 jnp.float32)
+    truth = jnp.asarray([[3.0, 9.0, 14.0]], jnp.float32)
+    grad = jax.grad(lambda c: surrogate(name)(c, truth, temperature=0.5).sum())(volume)
+    assert grad.shape == volume.shape and bool(jnp.isfinite(grad).all())
+    assert float(jnp.abs(grad).sum()) > 0
+
+
+def test_an_unknown_surrogate_names_the_known_ones():
+    with pytest.raises(ValueError, match="known: soft_l1"):
+        surrogate("l2")
+    with pytest.raises(ValueError, match="unknown surrogate"):
+        SearchSettings(surrogate="l2")
+
+
+def test_settings_round_trip_and_refuse_bad_values():
+    settings = SearchSettings(steps=5, frozen=["temperature"])
+    assert SearchSettings.from_dict(settings.to_dict()) == settings
+    for bad in ({"steps": 0}, {"ema": 1.0}, {"lr": 0.0}, {"min_valid": 1.0}, {"batch": 2.5}):
+        with pytest.raises(ValueError):
+            SearchSettings(**bad)
+    with pytest.raises(ValueError, match="unknown search settings"):
+        SearchSettings.from_dict({"step": 3})
+
+
+def _scenes(*names):
+    image = np.zeros((4, 4), np.uint8)
+    return [StereoScene(n, image, image, 4, np.zeros((4, 4), np.float32), None, None)
+            for n in names]
+
+
+def test_folds_leave_one_data_set_or_one_scene_out():
+    sets = {"A": (_scenes("a1", "a2"), "mean"), "B": (_scenes("b1"), "mean")}
+    by_set = folds(sets, "datasets")
+    assert [(name, sorted(train), list(held)) for name, train, held in by_set] == \
+        [("A", ["B"], ["A"]), ("B", ["A"], ["B"])]
+    by_scene = folds(sets, "scenes")
+    assert [name for name, _, _ in by_scene] == ["A-a1", "A-a2", "B-b1"]
+    name, train, held = by_scene[2]
+    assert list(train) == ["A"] and [s.name for s in held["B"]] == ["b1"]  # B had only b1
+    assert folds(sets, "none") == []
+    with pytest.raises(ValueError, match="two data sets"):
+        folds({"A": sets["A"]}, "datasets")
