@@ -13,13 +13,14 @@ two paths name one file (symbolic and hard links included).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 __all__ = ["InputError", "OutputFiles", "atomic_output", "atomic_outputs", "first_line",
-           "output_file", "reason", "same_file"]
+           "output_file", "reason", "same_file", "write_json"]
 
 
 class InputError(ValueError):
@@ -233,3 +234,10 @@ def output_file(path: str | os.PathLike, *, atomic: bool = True
     """Where a writer writes ``path``: :func:`atomic_output`'s temporary file, or with
     ``atomic=False`` ``path`` itself (already a temporary file of :func:`atomic_outputs`)."""
     return atomic_output(path) if atomic else contextlib.nullcontext(Path(path))
+
+
+def write_json(path: str | os.PathLike, data) -> None:
+    """Write ``data`` (JSON-ready) to ``path`` as indented JSON, atomically."""
+    with atomic_output(path) as tmp, open(tmp, "w") as handle:
+        json.dump(data, handle, indent=1)
+        handle.write("\n")
