@@ -217,7 +217,9 @@ def evaluate_scenes(
 
 
 def _average(values: Mapping[str, float], scoring: Scoring) -> float:
-    if scoring.average == "weighted":
+    """The ``scoring``'s average of per-scene values; a weighted scoring falls back to the
+    plain mean when some scene has no weight (a user's own folder in MiddEval3's layout)."""
+    if scoring.average == "weighted" and all(name in scoring.weights for name in values):
         return weighted_average(values, weights=scoring.weights)
     return scene_mean(values)
 
