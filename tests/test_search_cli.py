@@ -1,0 +1,145 @@
+"""``sswjax search`` end to end on a small user folder: the held-out report, the written
+parameters (loadable by ``--params``), ``--resume`` after Ctrl-C, and the refusals."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+import skimage.data
+
+import sswjax
+from sswjax.data.io import write_pfm
+
+QUICK = ["--steps", "2", "--batch", "2", "--crop-height", "48", "--crop-context", "64",
+         "--val-every", "1", "--val-images", "1", "--restarts", "1", "--patience", "5"]
+WINDOWS = {"top": np.s_[20:120, 60:260], "middle": np.s_[80:180, 100:300],
+           "bottom": np.s_[140:240, 40:240]}  # 100 x 200 windows of the half-size Motorcycle
+
+
+@pytest.fixture(scope="module")
+def user_folder(tmp_path_factory):
+    """A user's folder in MiddEval3's layout: three pairs cut from skimage's Motorcycle at half
+    size, with their ground truth (``inf`` = unknown), a mask of every pixel and ``calib.txt``."""
+    left, right, disparity = skimage.data.stereo_motorcycle()
+    left, right = left[::2, ::2], right[::2, ::2]
+    truth = np.where(np.isfinite(disparity), disparity / 2, np.inf)[::2, ::2].astype(np.float32)
+    root = tmp_path_factory.mktemp("user-data")
+    for name, window in WINDOWS.items():
+        folder = root / name
+        folder.mkdir()
+        iio.imwrite(folder / "im0.png", left[window])
+        iio.imwrite(folder / "im1.png", right[window])
+        write_pfm(folder / "disp0GT.pfm", truth[window])
+        iio.imwrite(folder / "mask0nocc.png", np.full(truth[window].shape, 255, np.uint8))
+        (folder / "calib.txt").write_text("ndisp=32\n")
+    return root
+
+
+@pytest.fixture(scope="module")
+def searched(user_folder, tmp_path_factory):
+    """One finished run: ``(exit code, stdout, stderr, output path)``."""
+    from sswjax.cli import main
+
+    out = tmp_path_factory.mktemp("search") / "params.json"
+    code = main(["--no-cache", "search", "--data", str(user_folder), "-o", str(out), *QUICK])
+    return code, out
+
+
+def test_search_writes_parameters_with_a_held_out_report(searched, user_folder):
+    code, out = searched
+    assert code == 0
+    data = json.loads(out.read_text())
+    folds = data["provenance"]["held_out"]
+    assert [f["held_out"] for f in folds] == sorted(WINDOWS)  # leave one scene out
+    for fold in folds:
+        for scores in (fold["base"], fold["searched"]):
+            assert 0 <= scores[user_folder.name]["nonocc"]["bad2.0"] <= 100
+    report = json.loads((out.parent / "params.json.search" / "report.json").read_text())
+    assert report["searched"] == ["cost.tad_truncation", "cost.gradient_truncation",
+                                  "optimizer.p1", "optimizer.p2", "optimizer.sigma"]
+    validation = data["provenance"]["validation_bad2"]
+    assert validation["searched"] <= validation["start"]  # the best validated point is kept
+
+
+def test_searched_parameters_run_with_params(searched, user_folder, tmp_path, run_cli):
+    _, out = searched
+    params = sswjax.load_params(out)
+    assert params.optimizer is not None
+    disparity = tmp_path / "d.pfm"
+    code, _, err = run_cli(["match", user_folder / "top" / "im0.png",
+                            user_folder / "top" / "im1.png", "--ndisp", "32", "--params", out,
+                            "-o", disparity])
+    assert code == 0, err
+    assert disparity.exists()
+
+
+def test_a_second_run_refuses_the_run_folder_and_resume_reuses_it(searched, user_folder,
+                                                                 run_cli):
+    _, out = searched
+    before = out.read_bytes()
+    code, _, err = run_cli(["--no-cache", "search", "--data", user_folder, "-o", out, *QUICK])
+    assert code == 2 and "holds a search run: pass --resume" in err
+    stamps = {p: p.stat().st_mtime_ns for p in out.with_name("params.json.search").rglob("*.pkl")}
+    code, _, err = run_cli(["--no-cache", "search", "--data", user_folder, "-o", out, *QUICK,
+                            "--resume"])
+    assert code == 0, err
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # no start was run again
+    after = {k: v for k, v in json.loads(out.read_bytes()).items() if k != "provenance"}
+    assert after == {k: v for k, v in json.loads(before).items() if k != "provenance"}
+    code, _, err = run_cli(["--no-cache", "search", "--data", user_folder, "-o", out,
+                            *QUICK[:-2], "--patience", "4", "--resume"])
+    assert code == 2 and "was run with other settings" in err
+
+
+def test_interrupted_search_resumes_to_the_same_parameters(searched, user_folder, tmp_path):
+    _, reference = searched
+    out = tmp_path / "params.json"
+    command = [sys.executable, "-m", "sswjax.cli", "--no-cache", "search", "--data",
+               str(user_folder), "-o", str(out), *QUICK]
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = out.with_name("params.json.search") / "fold-bottom" / "start-0" / "log.json"  # done
+    deadline = time.monotonic() + 300
+    while not first.exists() and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err.decode()
+    assert "--resume" in err.decode().splitlines()[-1]
+    assert not out.exists()
+    done = subprocess.run(command + ["--resume"], env=env, capture_output=True, timeout=600)
+    assert done.returncode == 0, done.stderr.decode()
+    searched_values = {k: v for k, v in json.loads(out.read_text()).items() if k != "provenance"}
+    expected = {k: v for k, v in json.loads(reference.read_text()).items() if k != "provenance"}
+    assert searched_values == expected
+
+
+def test_too_little_ground_truth_is_refused(tmp_path, run_cli):
+    folder = tmp_path / "tiny" / "pair"
+    folder.mkdir(parents=True)
+    image = (np.random.default_rng(0).random((40, 60, 3)) * 255).astype(np.uint8)
+    iio.imwrite(folder / "im0.png", image)
+    iio.imwrite(folder / "im1.png", image)
+    write_pfm(folder / "disp0GT.pfm", np.zeros((40, 60), np.float32))
+    iio.imwrite(folder / "mask0nocc.png", np.full((40, 60), 255, np.uint8))
+    (folder / "calib.txt").write_text("ndisp=16\n")
+    out = tmp_path / "p.json"
+    code, _, err = run_cli(["search", "--data", tmp_path / "tiny", "-o", out])
+    assert code == 2
+    assert err.startswith("sswjax: error: too little ground truth to search: 1 scene(s) with "
+                          "2,400 known pixels") and len(err.strip().splitlines()) == 1
+    assert not out.exists() and not out.with_name("p.json.search").exists()
+
+
+def test_a_preset_with_a_coarse_pass_is_refused(user_folder, tmp_path, run_cli):
+    code, _, err = run_cli(["search", "--data", user_folder, "-o", tmp_path / "p.json",
+                            "--preset", "fast"])
+    assert code == 2 and "coarse pass" in err
