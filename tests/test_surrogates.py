@@ -1,4 +1,4 @@
-"""The search's surrogates against what they stand in for, its settings, and its folds."""
+"""The search's surrogates against what they stand in for, its settings, its folds and its grid."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import sswjax
 from sswjax.data.layouts import StereoScene
 from sswjax.search import SURROGATES, SearchSettings, folds, surrogate
+from sswjax.search.grid import grid_options, grid_search
 from sswjax.search.surrogates import WINDOW_FLOOR, soft_bad, window_nll
 
 
@@ -85,3 +87,23 @@ def test_folds_leave_one_data_set_or_one_scene_out():
     assert folds(sets, "none") == []
     with pytest.raises(ValueError, match="two data sets"):
         folds({"A": sets["A"]}, "datasets")
+
+
+def test_grid_search_walks_each_option_once_and_replays_its_trials():
+    base = sswjax.preset("accurate")
+    assert dict(grid_options(base))["checks.uniqueness_gap"] == 1
+
+    def error(params):  # lowest at fill.tolerance 3 and gap 3; the other options indifferent
+        return abs(params.fill.tolerance - 3.0) + abs(params.checks.uniqueness_gap - 3) + 1.0
+
+    calls = []
+    best, best_error, trials = grid_search(base, lambda p: calls.append(p) or error(p))
+    assert best.fill.tolerance == 3.0 and best.checks.uniqueness_gap == 3
+    assert best_error == 1.0
+    assert best.smoothing.gate == base.smoothing.gate  # ties keep the start
+    assert len(calls) == len(trials) + 1  # + the start
+    replayed = []
+    again = grid_search(base, lambda p: replayed.append(p) or error(p), log=trials[:3])
+    assert again[0] == best and len(replayed) == len(trials) - 3 + 1
+    tried = [value for path, value, _ in trials if path == "checks.tolerance"]
+    assert base.checks.tolerance == 0.0 and tried == [0.5]  # -0.5 is out of bounds: not tried

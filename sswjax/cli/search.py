@@ -82,6 +82,9 @@ def add_search_command(commands) -> None:
                         choices=all_raw_keys(), metavar="KEY",
                         help="search variables held at their start (%(default)s; an empty "
                              "--freeze moves all), of %(choices)s")
+    parser.add_argument("--no-grid", action="store_true", help="skip the grid over the options "
+                        "without a gradient (occlusion gaps, tolerances, the smoothing's gate) "
+                        "after the continuous search")
     defaults = SearchSettings()
     for flag, (field, kind, text) in _SETTINGS.items():
         parser.add_argument(flag, type=kind, default=getattr(defaults, field), help=text,
@@ -112,7 +115,7 @@ def _data_sets(args) -> dict:
 def _settings(args) -> SearchSettings:
     values = {field: getattr(args, flag[2:].replace("-", "_")) for flag, (field, _, _)
               in _SETTINGS.items()}
-    return SearchSettings(**values, frozen=tuple(args.freeze))
+    return SearchSettings(**values, frozen=tuple(args.freeze), grid=not args.no_grid)
 
 
 def _check_run_dir(run_dir: Path, resume: bool, recorded: dict) -> None:

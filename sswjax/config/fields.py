@@ -92,6 +92,9 @@ class Option:
         Traced options the optax search may move, and how (:mod:`sswjax.search.space`).
     differentiable : Any
         Static options: the value the search runs with instead (None: the option's own value).
+    grid : float or None
+        Options without a gradient that the search tries on a grid instead: the step of the
+        values tried either side of the current one (:mod:`sswjax.search.grid`).
     """
 
     static: bool
@@ -104,6 +107,7 @@ class Option:
     odd: bool = False
     search: Transform | None = None
     differentiable: Any = None
+    grid: float | None = None
 
     def describe(self) -> str:
         """The allowed values in words, for help and error messages: ``"an odd integer in
@@ -131,7 +135,7 @@ def _number(value: float) -> str:
 
 def option(default, *, help: str, static: bool = False, low=None, high=None, above=None,
            choices=(), odd: bool = False, search: Transform | None = None,
-           differentiable=None) -> Any:
+           differentiable=None, grid: float | None = None) -> Any:
     """A dataclass field declaring one option (see :class:`Option`).
 
     The option's type is that of ``default`` for a static option (``int``, ``bool``, ``str``);
@@ -158,8 +162,11 @@ def option(default, *, help: str, static: bool = False, low=None, high=None, abo
             raise TypeError("differentiable= is for static options")
     if search is not None and static:
         raise TypeError("a static option has no search transform (it has no gradient)")
+    if grid is not None and (search is not None or not grid > 0 or kind in (bool, str)):
+        raise TypeError("grid= is a positive step, for numeric options without a search "
+                        "transform")
     spec = Option(static, kind, help, low, high, above, tuple(choices), odd, search,
-                  differentiable)
+                  differentiable, grid)
     return dataclasses.field(default=default, metadata={"option": spec})
 
 

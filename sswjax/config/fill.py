@@ -93,10 +93,10 @@ class VoteFill(_MedianOptions):
     band_fit: int = _band_fit()
     radius: int = option(9, static=True, low=1, high=50, help="radius of the sampled window")
     step: int = option(4, static=True, low=1, high=50, help="sampling step of the window")
-    sigma: float = option(0.2, above=0, help="intensity difference at which a neighbour's vote "
-                          "weighs a quarter of an identical one's")
-    tolerance: float = option(2.0, low=0, help="how close (pixels) a neighbour's disparity must "
-                              "be to a candidate to vote for it")
+    sigma: float = option(0.2, above=0, grid=0.1, help="intensity difference at which a "
+                          "neighbour's vote weighs a quarter of an identical one's")
+    tolerance: float = option(2.0, low=0, grid=1.0, help="how close (pixels) a neighbour's "
+                              "disparity must be to a candidate to vote for it")
 
     def fill(self, disparity, valid, *, guide, labels, num_segments):
         """:func:`~sswjax.stages.fill.vote_fill`."""

@@ -59,8 +59,8 @@ class GatedBilateralSmoothing(Part):
 
     # (2r + 1)^2 shifted windows, unrolled: r <= 7 keeps the graph small.
     radius: int = option(3, static=True, low=1, high=7, help="window radius")
-    gate: float = option(1.0, above=0, help="largest disparity difference (pixels) of a "
-                         "neighbour that is averaged")
+    gate: float = option(1.0, above=0, grid=0.5, help="largest disparity difference (pixels) "
+                         "of a neighbour that is averaged")
     colour_scale: float = option(0.1, above=0, help="scale of the colour weight (sum of "
                                  "absolute channel differences, intensities in [0, 1])")
     iterations: int = option(1, static=True, low=1, high=4, help="passes of the filter")

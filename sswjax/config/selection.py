@@ -28,16 +28,16 @@ class LeftRightCheck(Part):
     """Left-right consistency check (Eq. 9), optionally with two occlusion tests: uniqueness of
     each right pixel's claim, and the right view of the cost before optimisation."""
 
-    tolerance: float = option(0.0, low=0, help="largest left / right disagreement accepted, "
-                              "in pixels")
-    uniqueness_gap: int = option(0, static=True, low=0, high=100_000,
+    tolerance: float = option(0.0, low=0, grid=0.5, help="largest left / right disagreement "
+                              "accepted, in pixels")
+    uniqueness_gap: int = option(0, static=True, low=0, high=100_000, grid=1,
                                  help="g > 0: also reject a pixel whose right pixel is claimed "
                                       "by a disparity g or more apart at a lower cost before "
                                       "aggregation; 0: off")
     uniqueness_radius: int = option(2, static=True, low=0, high=50,
                                     help="the claims' costs are means over (2r+1)^2 pixels; 0: "
                                          "the pixel's own cost")
-    aggregated_gap: int = option(0, static=True, low=0, high=100_000,
+    aggregated_gap: int = option(0, static=True, low=0, high=100_000, grid=1,
                                  help="g > 0 (with an optimizer): also reject where the right "
                                       "view of the aggregated cost before the optimiser "
                                       "disagrees by g or more; 0: off")

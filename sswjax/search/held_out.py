@@ -21,6 +21,7 @@ from sswjax._files import write_json
 from sswjax.api.match import match
 from sswjax.config import Params
 from sswjax.evaluation.runner import SCORINGS, evaluate_scenes, summary
+from sswjax.search.grid import grid_options
 from sswjax.search.run import SearchResult, run_search, searched_options
 from sswjax.search.settings import SearchSettings
 from sswjax.search.space import value_of
@@ -98,15 +99,17 @@ def search_with_report(sets: dict, base: Params, settings: SearchSettings, *, fo
     folder.mkdir(parents=True, exist_ok=True)
     cache: dict = {}
     options = searched_options(base)
-    report = {"searched": list(options), "mode": mode, "folds": []}
+    report = {"searched": list(options), "grid": [p for p, _ in grid_options(base)],
+              "mode": mode, "folds": []}
     for name, train, held in folds(sets, mode):
         result = run_search(list(train.values()), base, settings, folder=folder / f"fold-{name}",
                             desc=f"without {name}", progress=progress, steps_cache=cache,
                             interrupted=interrupted)
         report["folds"].append({
             "held_out": name, "trained_on": sorted(train),
-            "params": {k: float(value_of(result.params, k)) for k in options},
-            "starts": result.starts,
+            "params": {k: float(value_of(result.params, k))
+                       for k in options + tuple(p for p, _ in grid_options(base))},
+            "starts": result.starts, "grid": result.grid_trials,
             "searched": _scores(result.params, held, sets, folder / f"eval-{name}-searched.json"),
             "base": _scores(base, held, sets, folder / f"eval-{name}-base.json"),
         })
@@ -114,10 +117,11 @@ def search_with_report(sets: dict, base: Params, settings: SearchSettings, *, fo
     final = run_search([scenes for scenes, _ in sets.values()], base, settings,
                        folder=folder / "final", desc="all scenes", progress=progress,
                        steps_cache=cache, interrupted=interrupted)
-    report["final"] = {"params": {k: float(value_of(final.params, k)) for k in options},
-                       "start": {k: float(value_of(base, k)) for k in options},
+    moved = options + tuple(p for p, _ in grid_options(base))
+    report["final"] = {"params": {k: float(value_of(final.params, k)) for k in moved},
+                       "start": {k: float(value_of(base, k)) for k in moved},
                        "validation": final.validation, "start_validation": final.start_validation,
-                       "starts": final.starts}
+                       "starts": final.starts, "grid": final.grid_trials}
     write_json(folder / "report.json", report)
     return final, report
 

@@ -13,7 +13,9 @@ scenes) and the base parameters, and runs ``settings.restarts`` starts. Each sta
 3. stops after ``patience`` validations without improvement, and returns the best validated
    point, so a search never returns parameters that validated worse than its start.
 
-Of the starts, the one with the lowest validated error wins. Each start keeps a checkpoint
+Of the starts, the one with the lowest validated error wins; then (``settings.grid``) one pass
+of the grid over the options without a gradient (:mod:`sswjax.search.grid`) on the same
+validation images. Each start keeps a checkpoint
 (raw variables, optimizer state, random stream, log; atomically written) in its own folder, so
 an interrupted search resumes where it stopped and a finished start is never run again.
 
@@ -23,6 +25,7 @@ ground truth with non-finite = unknown).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import NamedTuple
 
@@ -36,6 +39,7 @@ from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.search.checkpoints import load_checkpoint, save_checkpoint
 from sswjax.search.crops import crop_segments, prepare_scene, random_crops
+from sswjax.search.grid import grid_search
 from sswjax.search.settings import SearchSettings
 from sswjax.search.space import raw_to_params, searchable, to_unconstrained, value_of
 from sswjax.search.step import make_optimizer, make_update_step
@@ -59,12 +63,16 @@ class SearchResult(NamedTuple):
         The base parameters' mean bad 2.0 (%) there.
     starts : list of dict
         Per start: ``{"best_step", "best", "steps", "stopped_early"}``.
+    grid_trials : list
+        The grid's trials after the continuous search, ``[path, value, error]``
+        (:mod:`sswjax.search.grid`; empty without ``settings.grid``).
     """
 
     params: Params
     validation: float
     start_validation: float
     starts: list
+    grid_trials: list
 
 
 def searched_options(base: Params) -> tuple[str, ...]:
@@ -197,7 +205,25 @@ def run_search(groups, base: Params, settings: SearchSettings, *, folder, desc: 
             best = outcome
     params = raw_to_params({key: np.asarray(v, np.float32) for key, v in best["best_raw"].items()},
                            base)
-    return SearchResult(params, best["best"], start_validation, starts)
+    error, trials = best["best"], []
+    if settings.grid:
+        params, error, trials = _grid_phase(params, error, validation, folder / "grid.json",
+                                            interrupted or (lambda: False))
+    return SearchResult(params, error, start_validation, starts, trials)
+
+
+def _grid_phase(params, error, validation, path: Path, interrupted):
+    """:func:`sswjax.search.grid.grid_search` on the validation scenes, its trials kept in
+    ``path`` after each one (a resumed run replays them)."""
+    stored = json.loads(path.read_text()) if path.exists() else {"trials": []}
+
+    def keep(trials):
+        write_json(path, {"trials": trials})
+        if interrupted():
+            raise KeyboardInterrupt
+
+    return grid_search(params, lambda p: validation_error(p, validation), start_error=error,
+                       log=stored["trials"], progress=keep)
 
 
 def _run_start(raw, optimizer, by_group, validation, base, settings, step_fn, *, folder, desc,

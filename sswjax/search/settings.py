@@ -67,6 +67,9 @@ class SearchSettings:
         Raw keys held at their start (:func:`sswjax.search.make_optimizer`); by default the
         temperature, at which the surrogate's agreement with the metric was measured.
     checkpoint_every : int
+    grid : bool
+        After the continuous search, one pass of the grid over the options without a gradient
+        (:mod:`sswjax.search.grid`), validated on the same whole images.
     """
 
     steps: int = 60
@@ -88,6 +91,7 @@ class SearchSettings:
     seed: int = 0
     frozen: tuple = ("temperature",)
     checkpoint_every: int = 10
+    grid: bool = True
 
     def __post_init__(self):
         positive = ("steps", "batch", "crop_height", "crop_context", "val_every", "val_images",
