@@ -154,3 +154,13 @@ def test_evaluate_bucket_runs_ssw_scenes_through_the_sharded_grouped_path(tiny_m
     (out / "ssw" / "Vintage" / "timeSSW.txt").unlink()
     assert main(argv + ["--resume"]) == 0
     assert batches == [[10, 10], [10]]  # only the scene without a saved result ran again
+
+
+def test_summary_of_scenes_without_official_weights_is_the_plain_mean():
+    """A user's own folder in MiddEval3's layout: its pair names have no benchmark weight."""
+    rows = [SceneResult(name, np.zeros((2, 2), np.float32),
+                        {"nonocc": {"bad2.0": value, "bad1.0": value, "bad0.5": value}}, 0.1)
+            for name, value in (("kitchen", 10.0), ("garden", 20.0))]
+    assert summary(rows)["nonocc"]["bad2.0"] == pytest.approx(15.0)
+    official = [row._replace(scene=name) for row, name in zip(rows, ("Teddy", "Playroom"))]
+    assert summary(official)["nonocc"]["bad2.0"] == pytest.approx(40 / 3)  # weights 0.08, 0.04
