@@ -50,6 +50,19 @@ def _methods_help() -> str:
     return f"comma-separated method names (default ssw). {listed}".replace("%", "%%")
 
 
+def _ndisp_option(text: str):
+    """``--ndisp``: a positive count or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a count or 'auto', got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def add_evaluate_command(commands) -> None:
     """Add the ``evaluate`` sub-command to ``commands`` (argparse's sub-parsers)."""
     parser = commands.add_parser("evaluate", help="score methods on MiddEval3 scenes")
@@ -57,9 +70,12 @@ def add_evaluate_command(commands) -> None:
                         "Middlebury 2001/2003/2005/2006 or ETH3D two-view, told by its files "
                         "(default: $SSWJAX_DATA, then ../shared/data/MiddEval3 beside the project)")
     parser.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
-    parser.add_argument("--ndisp", type=int,
+    parser.add_argument("--ndisp", type=_ndisp_option,
                         help="disparities searched in every scene, 0..N-1 (default: calib.txt "
-                             "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2)")
+                             "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2); "
+                             "auto: the SSW methods search the range estimated from each pair "
+                             "(as match --ndisp auto; the peers keep the scene's), scored over "
+                             "the scene's range")
     parser.add_argument("--scenes", nargs="+", help="only these scenes")
     parser.add_argument("--methods", default="ssw", help=_methods_help())
     add_parameter_options(parser, "the base")
@@ -162,12 +178,18 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"no method given in --methods {args.methods!r}")
     params, execution = params_from_args(args)
     _note_ignored_plan(args, execution)
+    estimated = args.ndisp == "auto"
+    if estimated and args.bucket:
+        raise ValueError("--ndisp auto gives each pair its own range, which --bucket cannot "
+                         "batch: drop one of them")
     buckets = ShapeBuckets() if args.bucket else None
-    runners = {name: make_method(name, params=params, buckets=buckets) for name in methods}
+    runners = {name: make_method(name, params=params, buckets=buckets, estimate_range=estimated)
+               for name in methods}
     root = find_data_root(data=args.data)
     layout = detect_layout(root, split=args.split)
     scoring = SCORINGS[layout.scoring]
-    scenes, problems = checked_scenes(root, layout, args)
+    scene_args = argparse.Namespace(**{**vars(args), "ndisp": None if estimated else args.ndisp})
+    scenes, problems = checked_scenes(root, layout, scene_args)
     record = None
     if args.output is not None:
         settings = {"command": "evaluate", "version": __version__, "params": params.to_dict(),

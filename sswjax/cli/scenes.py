@@ -82,8 +82,12 @@ def skipped_markdown(problems: Problems, root: Path) -> str:
     return "\n".join(lines)
 
 
-def ndisp_line(layout: Layout, ndisp: int | None) -> str:
+def ndisp_line(layout: Layout, ndisp: int | str | None) -> str:
     """Where the disparity counts of the run come from, one line of ``results.md``."""
+    if ndisp == "auto":
+        return ("Disparity range searched by the SSW methods: estimated from each pair "
+                f"(--ndisp auto); scored, and searched by the peers, over {layout.name}'s: "
+                f"{layout.ndisp_rule}.")
     if ndisp is not None:
         return f"Disparity range searched: 0..{ndisp - 1} in every scene (--ndisp {ndisp})."
     return f"Disparity range searched ({layout.name}): {layout.ndisp_rule}."

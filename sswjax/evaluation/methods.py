@@ -139,7 +139,7 @@ class BucketedSSW:
 
 def make_method(
     name: str, *, params: Params | None = None, buckets: ShapeBuckets | None = None,
-    devices=None,
+    devices=None, estimate_range: bool = False,
 ) -> Method:
     """The method called ``name`` as ``(left, right, ndisp) -> disparity``.
 
@@ -156,6 +156,10 @@ def make_method(
     devices : sequence of jax.Device, optional
         Devices of the batched evaluation (default: all ``jax.devices()``); used only with
         ``buckets``.
+    estimate_range : bool
+        The SSW variants ignore the scene's ``ndisp`` and search the range
+        :func:`sswjax.api.auto_range.estimate_range` estimates from the pair (``sswjax.match``
+        with ``ndisp=None``); not with ``buckets``. Peers always get the scene's range.
 
     Examples
     --------
@@ -168,9 +172,19 @@ def make_method(
     if name not in method_names():
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(method_names())}")
     variant = (default_params() if params is None else params).replace(**variant_changes(name))
+    if estimate_range:
+        if buckets is not None:
+            raise ValueError("an estimated range is each pair's own: it cannot be batched in "
+                             "shape buckets")
+        return functools.partial(_estimated_range_match, params=variant)
     if buckets is not None:
         return BucketedSSW(variant, buckets, None if devices is None else tuple(devices))
     return functools.partial(match, params=variant)
+
+
+def _estimated_range_match(left, right, ndisp: int, *, params: Params):
+    """``sswjax.match`` over the range estimated from the pair; ``ndisp`` (the scene's) unused."""
+    return match(left, right, None, params=params)
 
 
 def submission_name(name: str) -> str:

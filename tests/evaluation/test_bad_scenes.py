@@ -271,3 +271,32 @@ def test_evaluate_scene_refuses_a_ground_truth_without_known_pixel(tmp_path, mid
     unknown = scene._replace(ground_truth=np.full_like(scene.ground_truth, np.inf))
     with pytest.raises(ValueError, match="scene Teddy has no known ground-truth disparity"):
         evaluate_scene(lambda left, right, ndisp: np.zeros(left.shape[:2], np.float32), unknown)
+
+
+def test_eth3d_with_an_estimated_range(tmp_path, capsys):
+    """``--ndisp auto``: ETH3D's calib.txt gives no range (its ndisp is the width); the SSW
+    methods then search what the pair's coarse pass estimates, a real match."""
+    images = tmp_path / "ETH3D" / "two_view_training" / "terrace_1s"
+    truth = tmp_path / "ETH3D" / "two_view_training_gt" / "terrace_1s"
+    images.mkdir(parents=True)
+    truth.mkdir(parents=True)
+    rng = np.random.default_rng(3)
+    right = (rng.random((96, 192)) * 255).astype(np.uint8)
+    right = np.repeat(np.repeat(right[::2, ::2], 2, axis=0), 2, axis=1)  # 2-pixel texture
+    iio.imwrite(images / "im0.png", np.roll(right, 21, axis=1))
+    iio.imwrite(images / "im1.png", right)
+    (images / "calib.txt").write_text("cam0=[500 0 96; 0 500 48; 0 0 1]\nbaseline=60\n"
+                                      "width=192\nheight=96\nndisp=192\n")
+    gt = np.full((96, 192), 21.0, np.float32)
+    gt[:, :21] = np.inf
+    write_pfm(truth / "disp0GT.pfm", gt)
+    iio.imwrite(truth / "mask0nocc.png", np.where(np.isfinite(gt), 255, 0).astype(np.uint8))
+    root = tmp_path / "ETH3D"
+    assert main(["--no-cache", "evaluate", "--data", root, "--methods", "ssw", "--ndisp",
+                 "auto"]) == 0
+    out = capsys.readouterr().out
+    assert "estimated from each pair (--ndisp auto)" in out
+    row = [line for line in out.splitlines() if "| terrace_1s |" in line][0]
+    assert float(row.split("|")[2]) < 5.0  # bad 2.0 nonocc
+    assert main(["evaluate", "--data", root, "--ndisp", "auto", "--bucket"]) == 2
+    assert "--ndisp auto gives each pair its own range" in capsys.readouterr().err
