@@ -144,3 +144,18 @@ def test_a_preset_with_a_coarse_pass_is_refused(user_folder, tmp_path, run_cli):
     code, _, err = run_cli(["search", "--data", user_folder, "-o", tmp_path / "p.json",
                             "--preset", "fast"])
     assert code == 2 and "coarse pass" in err
+
+
+def test_the_grid_runs_after_the_continuous_search_and_is_kept(user_folder, tmp_path, run_cli):
+    out = tmp_path / "paper.json"
+    args = ["--no-cache", "search", "--data", user_folder, "-o", out, "--preset", "paper",
+            "--held-out", "none", *QUICK[:-1]]
+    code, _, err = run_cli(args)
+    assert code == 0, err
+    grid = json.loads((tmp_path / "paper.json.search" / "final" / "grid.json").read_text())
+    tried = {path for path, _, _ in grid["trials"]}
+    # the paper's options without a gradient; aggregated_gap acts only with an optimiser
+    assert tried == {"checks.tolerance", "checks.uniqueness_gap"}
+    report = json.loads((tmp_path / "paper.json.search" / "report.json").read_text())
+    assert report["folds"] == [] and report["final"]["grid"] == grid["trials"]
+    assert "checks.tolerance" in report["final"]["params"]

@@ -39,7 +39,7 @@ from sswjax.evaluation.metrics import evaluate_disparity
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.search.checkpoints import load_checkpoint, save_checkpoint
 from sswjax.search.crops import crop_segments, prepare_scene, random_crops
-from sswjax.search.grid import grid_search
+from sswjax.search.grid import grid_options, grid_search
 from sswjax.search.settings import SearchSettings
 from sswjax.search.space import raw_to_params, searchable, to_unconstrained, value_of
 from sswjax.search.step import make_optimizer, make_update_step
@@ -208,22 +208,31 @@ def run_search(groups, base: Params, settings: SearchSettings, *, folder, desc: 
     error, trials = best["best"], []
     if settings.grid:
         params, error, trials = _grid_phase(params, error, validation, folder / "grid.json",
-                                            interrupted or (lambda: False))
+                                            interrupted or (lambda: False),
+                                            desc=f"{desc} grid", progress=progress)
     return SearchResult(params, error, start_validation, starts, trials)
 
 
-def _grid_phase(params, error, validation, path: Path, interrupted):
+def _grid_phase(params, error, validation, path: Path, interrupted, *, desc, progress):
     """:func:`sswjax.search.grid.grid_search` on the validation scenes, its trials kept in
-    ``path`` after each one (a resumed run replays them)."""
+    ``path`` after each one (a resumed run replays them); a bar over the trials (at most two
+    per option)."""
     stored = json.loads(path.read_text()) if path.exists() else {"trials": []}
+    bar = tqdm(total=2 * len(grid_options(params)), initial=len(stored["trials"]), desc=desc,
+               unit="trial", disable=not progress)
 
     def keep(trials):
         write_json(path, {"trials": trials})
+        bar.update(len(trials) - bar.n)
         if interrupted():
+            bar.close()
             raise KeyboardInterrupt
 
-    return grid_search(params, lambda p: validation_error(p, validation), start_error=error,
-                       log=stored["trials"], progress=keep)
+    try:
+        return grid_search(params, lambda p: validation_error(p, validation), start_error=error,
+                           log=stored["trials"], progress=keep)
+    finally:
+        bar.close()
 
 
 def _run_start(raw, optimizer, by_group, validation, base, settings, step_fn, *, folder, desc,
