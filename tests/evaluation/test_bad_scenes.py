@@ -80,7 +80,7 @@ def oracle(monkeypatch):
     0 %); records ``(method, scene width, ndisp)`` of each call."""
     calls = []
 
-    def make_method(name, params=None, *, buckets=None, devices=None):
+    def make_method(name, params=None, *, buckets=None, devices=None, estimate_range=False):
         def run(left, right, ndisp):
             calls.append((name, left.shape[1], ndisp))
             a, b = np.asarray(left, np.int16), np.asarray(right, np.int16)

@@ -103,7 +103,7 @@ def oracle(monkeypatch):
     px, so bad 0.5 is 100 %) and records the ndisp it is called with."""
     calls = []
 
-    def make_method(name, params=None, *, buckets=None, devices=None):
+    def make_method(name, params=None, *, buckets=None, devices=None, estimate_range=False):
         def run(left, right, ndisp):
             calls.append((name, ndisp))
             a, b = np.asarray(left, np.int16), np.asarray(right, np.int16)
