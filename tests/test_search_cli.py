@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -159,3 +160,15 @@ def test_the_grid_runs_after_the_continuous_search_and_is_kept(user_folder, tmp_
     report = json.loads((tmp_path / "paper.json.search" / "report.json").read_text())
     assert report["folds"] == [] and report["final"]["grid"] == grid["trials"]
     assert "checks.tolerance" in report["final"]["params"]
+
+
+def test_the_shipped_searched_parameters_load_and_match(user_folder, tmp_path, run_cli):
+    """``tuning/params/searched.json``: the search on the three shared sets."""
+    path = Path(__file__).resolve().parents[1] / "tuning" / "params" / "searched.json"
+    params = sswjax.load_params(path)
+    assert params.optimizer.p2 != sswjax.preset("accurate").optimizer.p2  # a searched value
+    assert json.loads(path.read_text())["provenance"]["held_out"]  # with its fold table
+    code, _, err = run_cli(["match", user_folder / "top" / "im0.png", user_folder / "top" /
+                            "im1.png", "--ndisp", "32", "--params", path, "-o", tmp_path / "d.pfm"])
+    assert code == 0, err
+    assert (tmp_path / "d.pfm").exists()
