@@ -172,7 +172,14 @@ def run_search(groups, base: Params, settings: SearchSettings, *, folder, desc: 
         raise ValueError(f"no training scene is large enough for a {settings.crop_height}-row "
                          f"crop of its range plus {settings.crop_context} columns")
     validation = _validation_scenes(groups, settings)
-    start_validation = validation_error(base, validation)
+    folder.mkdir(parents=True, exist_ok=True)
+    start_path = folder / "start.json"  # the base's validation, kept for a resumed run
+    if start_path.exists():
+        start_validation = json.loads(start_path.read_text())["validation_bad2"]
+    else:
+        start_validation = validation_error(base, validation)
+        write_json(start_path, {"validation_bad2": start_validation,
+                                "images": [s.name for s in validation]})
     temperature = settings.temperature or 0.02 * (base.optimizer.paths if base.optimizer else 1)
     optimizer = make_optimizer(settings.lr, frozen=settings.frozen)
     steps_cache = {} if steps_cache is None else steps_cache
