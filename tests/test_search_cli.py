@@ -172,3 +172,25 @@ def test_the_shipped_searched_parameters_load_and_match(user_folder, tmp_path, r
                             "im1.png", "--ndisp", "32", "--params", path, "-o", tmp_path / "d.pfm"])
     assert code == 0, err
     assert (tmp_path / "d.pfm").exists()
+
+
+@pytest.mark.parametrize("case", ["missing-data", "output-is-params", "resume-without-run"])
+def test_bad_requests_are_one_line_and_write_nothing(case, user_folder, tmp_path, run_cli):
+    out = tmp_path / "p.json"
+    if case == "missing-data":
+        argv, message = ["--data", tmp_path / "nope", "-o", out], "--data PATH: no such folder"
+    elif case == "output-is-params":
+        code, _, _ = run_cli(["params", "--preset", "accurate", "-o", out])
+        assert code == 0
+        argv, message = (["--data", user_folder, "-o", out, "--params", out],
+                         "-o PATH is the --params file: it would be overwritten")
+    else:
+        argv, message = ["--data", user_folder, "-o", out, "--resume"], \
+            "--resume: PATH holds no search run"
+    before = out.read_bytes() if out.exists() else None
+    code, _, err = run_cli(["search", *argv])
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    prefix, suffix = message.split("PATH")
+    assert err.startswith(f"sswjax: error: {prefix}") and err.strip().endswith(suffix.strip())
+    assert (out.read_bytes() if out.exists() else None) == before
+    assert not out.with_name("p.json.search").exists()
