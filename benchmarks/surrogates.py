@@ -74,8 +74,8 @@ def surrogate_values(params, crops, *, ndisp: int, temperatures, segments: int):
     p = params if params.segments is None else params.replace(**{"segments.n_segments": segments})
     lefts, rights, gts, valids, nds = crops
     sums, counts, bad = {}, 0, 0
+    raw = search.to_unconstrained(p, temperature=1.0, searched=search.SGM_SEARCHED)
     for i in range(len(lefts)):
-        raw = search.to_unconstrained(p, temperature=1.0, searched=search.SGM_SEARCHED)
         cost, _ = _volume(raw, lefts[i], rights[i], nds[i], p, ndisp)
         gt, valid = jnp.asarray(gts[i]), jnp.asarray(valids[i])
         for t in temperatures:

@@ -48,7 +48,7 @@ from plot import plot_run, results_markdown, summarise, weighted  # tuning/plot.
 
 import sswjax
 from sswjax import search as tuning
-from sswjax._files import atomic_output
+from sswjax._files import atomic_output, write_json
 from sswjax.config import load_params, save_params
 from sswjax.data.layouts import detect_layout, find_data_root, load_scenes
 from sswjax.data.layouts.middeval3 import load_middeval3
@@ -89,12 +89,6 @@ def bucket_of(scene) -> int:
         if scene.ndisp <= nd:
             return i
     raise ValueError(f"scene {scene.name}: ndisp {scene.ndisp} > {BUCKETS[-1][0]}")
-
-
-def write_json(path, data):
-    with atomic_output(path) as tmp, open(tmp, "w") as handle:
-        json.dump(data, handle, indent=1)
-        handle.write("\n")
 
 
 def with_segments(params, n_segments: int):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from sswjax.config import ConfigError, Params, check_params
 from sswjax.config.fields import option_fields
+from sswjax.search.space import value_of
 
 __all__ = ["grid_options", "grid_search"]
 
@@ -33,9 +34,7 @@ def grid_options(params: Params) -> tuple[tuple[str, float], ...]:
 
 def _neighbours(params: Params, path: str, step: float) -> list[Params]:
     """``params`` with ``path`` one ``step`` lower and one higher, where valid."""
-    slot, name = path.split(".", 1)
-    config = getattr(params, slot)
-    value = getattr(config, name)
+    value = value_of(params, path)
     out = []
     for candidate in (value - step, value + step):
         candidate = type(value)(round(candidate, 6))
@@ -75,7 +74,7 @@ def grid_search(params: Params, error, *, start_error: float | None = None, log=
     best_error = error(params) if start_error is None else start_error
     for path, step in grid_options(params):
         for candidate in _neighbours(best, path, step):
-            value = _value(candidate, path)
+            value = value_of(candidate, path)
             key = (path, repr(value))
             if key not in known:
                 known[key] = error(candidate)
@@ -85,8 +84,3 @@ def grid_search(params: Params, error, *, start_error: float | None = None, log=
             if known[key] < best_error:
                 best, best_error = candidate, known[key]
     return best, best_error, trials
-
-
-def _value(params: Params, path: str):
-    slot, name = path.split(".", 1)
-    return getattr(getattr(params, slot), name)

@@ -99,16 +99,16 @@ def search_with_report(sets: dict, base: Params, settings: SearchSettings, *, fo
     folder.mkdir(parents=True, exist_ok=True)
     cache: dict = {}
     options = searched_options(base)
-    report = {"searched": list(options), "grid": [p for p, _ in grid_options(base)],
-              "mode": mode, "folds": []}
+    grid = tuple(p for p, _ in grid_options(base))
+    moved = options + grid
+    report = {"searched": list(options), "grid": list(grid), "mode": mode, "folds": []}
     for name, train, held in folds(sets, mode):
         result = run_search(list(train.values()), base, settings, folder=folder / f"fold-{name}",
                             desc=f"without {name}", progress=progress, steps_cache=cache,
                             interrupted=interrupted)
         report["folds"].append({
             "held_out": name, "trained_on": sorted(train),
-            "params": {k: float(value_of(result.params, k))
-                       for k in options + tuple(p for p, _ in grid_options(base))},
+            "params": {k: float(value_of(result.params, k)) for k in moved},
             "starts": result.starts, "grid": result.grid_trials,
             "searched": _scores(result.params, held, sets, folder / f"eval-{name}-searched.json"),
             "base": _scores(base, held, sets, folder / f"eval-{name}-base.json"),
@@ -117,7 +117,6 @@ def search_with_report(sets: dict, base: Params, settings: SearchSettings, *, fo
     final = run_search([scenes for scenes, _ in sets.values()], base, settings,
                        folder=folder / "final", desc="all scenes", progress=progress,
                        steps_cache=cache, interrupted=interrupted)
-    moved = options + tuple(p for p, _ in grid_options(base))
     report["final"] = {"params": {k: float(value_of(final.params, k)) for k in moved},
                        "start": {k: float(value_of(base, k)) for k in moved},
                        "validation": final.validation, "start_validation": final.start_validation,
