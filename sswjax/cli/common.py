@@ -28,10 +28,10 @@ from sswjax._files import same_file
 from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_disparity_png, write_float_map
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "HelpFormatter", "Interrupted",
-           "Parser", "Writer", "check_output_files", "check_outputs", "command_line",
-           "disparity_writers", "gigabytes", "resume_command", "uninterrupted",
-           "write_disparity_map"]
+__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "check_output_files",
+           "check_outputs", "command_line", "disparity_writers", "gigabytes", "HelpFormatter",
+           "interrupt_flag", "Interrupted", "Parser", "resume_command", "uninterrupted",
+           "write_disparity_map", "Writer"]
 
 Writer = Callable[[Path], object]
 """What writes one output: a function of the (temporary) file to write."""
@@ -99,6 +99,30 @@ def uninterrupted():
         previous(signal.SIGINT, None)  # Python's default handler raises KeyboardInterrupt
     elif received and previous == signal.SIG_DFL:
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def interrupt_flag():
+    """Yield ``() -> bool``, true once Ctrl-C was pressed; a second Ctrl-C interrupts at once.
+
+    The search asks it after every step and stops there with its checkpoint saved. Python's
+    own handler would raise ``KeyboardInterrupt`` wherever the signal lands, which in JAX is
+    often a garbage-collection callback that swallows it. Outside the main thread the flag
+    stays false."""
+    received = []
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+
+    def handler(number, frame):
+        received.append(number)
+        signal.signal(signal.SIGINT, previous)
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: bool(received)
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def resume_command(argv: list[str]) -> str:

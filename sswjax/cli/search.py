@@ -13,18 +13,16 @@ provenance) and load with ``--params``. The search's state lives in a run folder
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime
 import json
-import signal
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
 
 from sswjax._files import InputError, same_file, write_json
-from sswjax.cli.common import Interrupted, check_output_files, command_line, resume_command
+from sswjax.cli.common import (Interrupted, check_output_files, command_line, interrupt_flag,
+                               resume_command)
 from sswjax.cli.options import add_parameter_options, params_from_args
 from sswjax.cli.scenes import checked_scenes
 from sswjax.config import save_params
@@ -183,30 +181,6 @@ def run_search_command(args: argparse.Namespace) -> int:
     print(f"wrote {output} (validation bad 2.0 {final.start_validation:.2f} -> "
           f"{final.validation:.2f} %)", file=sys.stderr)
     return 0
-
-
-@contextlib.contextmanager
-def interrupt_flag():
-    """Yield ``() -> bool``, true once Ctrl-C was pressed; a second Ctrl-C interrupts at once.
-
-    The search asks it after every step and stops there with its checkpoint saved. Python's
-    own handler would raise ``KeyboardInterrupt`` wherever the signal lands, which in JAX is
-    often a garbage-collection callback that swallows it. Outside the main thread the flag
-    stays false."""
-    received = []
-    if threading.current_thread() is not threading.main_thread():
-        yield lambda: False
-        return
-
-    def handler(number, frame):
-        received.append(number)
-        signal.signal(signal.SIGINT, previous)
-
-    previous = signal.signal(signal.SIGINT, handler)
-    try:
-        yield lambda: bool(received)
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _plain(value):
