@@ -37,12 +37,11 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from sswjax._checks import check_floating, check_rank
-from sswjax.stages.pyramid import double_volume, halve_image, halve_volume
+from sswjax._checks import check_floating, check_integer, check_rank, check_same_shape
+from sswjax.stages.bands import align_band, band_deltas
 from sswjax.stages.quantisation import PathSums, as_volume, quantisation, quantise, quantise_cost
 
-__all__ = ["PATH_COUNTS", "half_resolution_semi_global", "path_penalties", "semi_global",
-           "semi_global_sums"]
+__all__ = ["PATH_COUNTS", "path_penalties", "semi_global", "semi_global_sums"]
 
 PATH_COUNTS = (4, 8)
 """Supported numbers of paths."""
@@ -109,22 +108,28 @@ def path_penalties(
     return p1_map, p2_map
 
 
-def _path_step(previous, cost, p1, p2, levels_step=None):
+def _path_step(previous, cost, p1, p2, levels_step=None, delta=None):
     """One step of Eq. 13 for a line of pixels: ``previous``, ``cost`` (D, N); ``p1``, ``p2`` (N,).
 
     Float32 or int16 alike: the first and last disparities' missing neighbour is the disparity
     itself (edge-replicated), which ``+ p1`` can never make the minimum, so no sentinel such as
     ``inf`` (which int16 has not, and whose sum would overflow) is needed. A uint8 ``cost`` is
     widened to ``previous``'s dtype and multiplied by ``levels_step`` (int16 steps per level).
+
+    ``delta`` (int32 (N,)): the lines are bands (:mod:`sswjax.stages.bands`) whose starts differ
+    by ``delta`` from the predecessor's; its band is realigned to the pixel's disparities, and a
+    disparity it did not search costs ``min + P2`` (reachable only by the jump).
     """
     if levels_step is not None:
         cost = cost.astype(previous.dtype) * levels_step
     lowest = previous.min(axis=0)
-    neighbours = jnp.minimum(
-        jnp.concatenate([previous[1:], previous[-1:]]),
-        jnp.concatenate([previous[:1], previous[:-1]]),
-    )
-    best = jnp.minimum(jnp.minimum(previous, neighbours + p1), lowest + p2)
+    if delta is None:
+        below = jnp.concatenate([previous[:1], previous[:-1]])
+        above = jnp.concatenate([previous[1:], previous[-1:]])
+    else:
+        aligned = align_band(previous, delta, lowest + p2)
+        previous, below, above = aligned[1:-1], aligned[:-2], aligned[2:]
+    best = jnp.minimum(jnp.minimum(previous, jnp.minimum(below, above) + p1), lowest + p2)
     return cost + best - lowest
 
 
@@ -181,6 +186,62 @@ def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total:
     return run(run(total, False), True)
 
 
+def _scan_band_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...],
+                    total: jax.Array | None, starts: jax.Array, *, levels_step=None,
+                    dtype=None) -> jax.Array:
+    """:func:`_scan_axis` of a band volume ``cost`` (K, S, N) with first disparities
+    ``starts`` (int32 (S, N)): each step realigns the predecessor's band
+    (:func:`~sswjax.stages.bands.band_deltas`).
+
+    A band's lines are small, and on XLA CPU each iteration of a loop has a fixed cost that they
+    do not hide: step ``i`` advances the forward paths to line ``i`` and the backward ones to
+    line ``S - 1 - i``, side by side in lines of 2N, in half the iterations; each direction
+    writes into a buffer of its own (one in-place update per buffer and step), added to
+    ``total`` at the end. (Reversing the volume instead, ``jnp.flip``, cost more than the
+    paths.)
+    """
+    steps, size = cost.shape[1:]
+
+    def paired(forward_map, backward_map):  # (S, N) maps, the backward one read reversed
+        return jnp.concatenate([forward_map, backward_map[::-1]], axis=-1)
+
+    pens = {shift: tuple(paired(a, b) for a, b in zip(penalties[(True, shift)],
+                                                       penalties[(False, shift)]))
+            for shift in shifts}
+    deltas = {shift: paired(band_deltas(starts, shift, True),
+                            band_deltas(starts, -shift, False)) for shift in shifts}
+    sum_dtype = (cost.dtype if dtype is None else dtype) if total is None else total.dtype
+
+    def along(line, shift):
+        # The forward half steps by +shift along N, the backward half by -shift.
+        return jnp.concatenate([_shift_line(line[:, :size], shift),
+                                _shift_line(line[:, size:], -shift)], axis=1)
+
+    def step(i, state):
+        lines, forward, backward = state
+        back = steps - 1 - i
+        line_cost = jnp.concatenate([lax.dynamic_index_in_dim(cost, i, axis=1, keepdims=False),
+                                     lax.dynamic_index_in_dim(cost, back, axis=1,
+                                                              keepdims=False)], axis=1)
+        partial = None
+        new = []
+        for k, shift in enumerate(shifts):
+            p1, p2 = (lax.dynamic_index_in_dim(m, i, keepdims=False) for m in pens[shift])
+            delta = lax.dynamic_index_in_dim(deltas[shift], i, keepdims=False)
+            line = _path_step(along(lines[k], shift), line_cost, p1, p2, levels_step, delta)
+            new.append(line)
+            partial = line if partial is None else partial + line
+        forward = lax.dynamic_update_index_in_dim(forward, partial[:, :size], i, axis=1)
+        backward = lax.dynamic_update_index_in_dim(backward, partial[:, size:], back, axis=1)
+        return tuple(new), forward, backward
+
+    start = tuple(jnp.zeros((cost.shape[0], 2 * size), sum_dtype) for _ in shifts)
+    buffers = (jnp.zeros(cost.shape, sum_dtype), jnp.zeros(cost.shape, sum_dtype))
+    _, forward, backward = lax.fori_loop(0, steps, step, (start, *buffers))
+    result = forward + backward
+    return result if total is None else total + result
+
+
 def semi_global(cost: jax.Array, guide: jax.Array, **options) -> jax.Array:
     """Semi-global aggregation of a cost volume: the sum of ``paths`` path costs (Eq. 13-14).
 
@@ -219,6 +280,7 @@ def semi_global_sums(
     segment_factor=1.0,
     cost_bound=None,
     cost_levels=None,
+    starts: jax.Array | None = None,
 ) -> PathSums:
     """:func:`semi_global` as the scans leave it: int16 sums with ``cost_bound``, unconverted.
 
@@ -254,6 +316,12 @@ def semi_global_sums(
         With ``cost_bound``: None stores the cost the scans read in int16; 255 stores it in
         uint8 (the paths and sums stay int16): the volume that the transpose and the four
         scans read is half the bytes again.
+    starts : int32 (H, W), optional
+        ``cost`` is a band volume (:mod:`sswjax.stages.bands`): plane ``k`` of pixel ``p`` is
+        disparity ``starts[p] + k``. The recursion is Eq. 13 in those absolute disparities:
+        each step realigns the predecessor's band to the pixel's, and a disparity outside the
+        predecessor's band is reached only by the P2 jump (the tSGM of Rothermel et al. 2012).
+        With every start 0 it is the full volume's recursion.
 
     Returns
     -------
@@ -275,6 +343,9 @@ def semi_global_sums(
                          f"{tuple(cost.shape[1:])}")
     if paths not in PATH_COUNTS:
         raise ValueError(f"paths must be one of {PATH_COUNTS}, got {paths!r}")
+    if starts is not None:
+        check_integer("starts", starts)
+        check_same_shape("starts", starts, "cost plane", cost[0])
 
     if cost_bound is None:
         check_floating("cost", cost)
@@ -312,57 +383,14 @@ def semi_global_sums(
     # back. The transposed copy is made before the loops, so the float32 volume is released.
     work, columns = lax.optimization_barrier((work, jnp.transpose(work, (0, 2, 1))))
     sum_dtype = jnp.float32 if scale is None else jnp.int16
-    total = _scan_axis(columns, pens_h, (0,), None, levels_step=levels_step, dtype=sum_dtype)
-    total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
-                       levels_step=levels_step)
+    if starts is None:
+        total = _scan_axis(columns, pens_h, (0,), None, levels_step=levels_step,
+                           dtype=sum_dtype)
+        total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
+                           levels_step=levels_step)
+    else:
+        total = _scan_band_axis(columns, pens_h, (0,), None, starts.T,
+                                levels_step=levels_step, dtype=sum_dtype)
+        total = _scan_band_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)), starts,
+                                levels_step=levels_step)
     return PathSums(total, scale)
-
-
-def half_resolution_semi_global(
-    cost: jax.Array,
-    guide: jax.Array,
-    *,
-    p1,
-    p2,
-    sigma=0.05,
-    paths: int = 4,
-    detail_weight=1.0,
-    cost_bound=None,
-    cost_levels=None,
-) -> jax.Array:
-    """Semi-global optimisation at half resolution, added back to the full-resolution cost.
-
-    The volume is halved in space and disparity (:func:`sswjax.stages.pyramid.halve_volume`),
-    optimised by :func:`semi_global` with the halved guide, doubled back, and the
-    full-resolution cost weighted by ``detail_weight`` is added: the coarse paths carry the
-    evidence across weakly textured areas for an eighth of the work, and the fine cost decides
-    between the two disparities and the four pixels that each coarse cell stands for. This is
-    cross-scale aggregation in the sense of Zhang et al. (CVPR 2014), with SGM as the coarse
-    scale's aggregator. A coarse disparity step is two fine ones, so ``p1`` acts on steps of 2.
-
-    Parameters
-    ----------
-    cost : float32 (D, H, W)
-    guide : float32 (H, W, C)
-    p1, p2, sigma, paths, cost_bound, cost_levels
-        As in :func:`semi_global_sums` (halving averages, so the bound holds at half resolution).
-    detail_weight : float or scalar array, >= 0
-        Weight of the full-resolution cost in the sum.
-
-    Returns
-    -------
-    float32 (D, H, W), lower is better.
-
-    Examples
-    --------
-    >>> import jax.numpy as jnp
-    >>> cost = jnp.ones((6, 8, 10)).at[3].set(0.0)
-    >>> out = half_resolution_semi_global(cost, jnp.zeros((8, 10, 1)), p1=0.1, p2=0.5)
-    >>> out.shape, int(out.argmin(axis=0).min()), int(out.argmin(axis=0).max())
-    ((6, 8, 10), 3, 3)
-    """
-    check_rank("cost", cost, 3)
-    check_floating("cost", cost)
-    coarse = semi_global(halve_volume(cost), halve_image(guide), p1=p1, p2=p2, sigma=sigma,
-                         paths=paths, cost_bound=cost_bound, cost_levels=cost_levels)
-    return detail_weight * cost + double_volume(coarse, shape=cost.shape)

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from sswjax.stages.pyramid import double_volume, halve_image, halve_volume
-from sswjax.stages.sgm import half_resolution_semi_global, semi_global
+from sswjax.stages.cross_scale import half_resolution_semi_global
+from sswjax.stages.sgm import semi_global
 
 
 def _block_mean(x: np.ndarray, axes) -> np.ndarray:

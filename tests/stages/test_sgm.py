@@ -201,3 +201,76 @@ def test_entry_checks():
         semi_global(jnp.zeros((2, 4, 4)), jnp.zeros((4, 5, 1)), p1=0.1, p2=0.2)
     with pytest.raises(ValueError, match="rank"):
         semi_global(jnp.zeros((4, 4)), jnp.zeros((4, 4, 1)), p1=0.1, p2=0.2)
+
+
+# ---------------------------------------------------------------------------------------------
+# bands (per-pixel disparity ranges, sswjax.stages.bands)
+
+
+def band_semi_global_reference(cost, starts, guide, p1, p2, sigma, paths):
+    """Eq. 13 over per-pixel bands, pixel by pixel and disparity by disparity in float64: the
+    predecessor's path cost at an absolute disparity it did not search is missing."""
+    cost = cost.astype(np.float64)
+    width_k, height, width = cost.shape
+    total = np.zeros_like(cost)
+    for dy, dx in DIRECTIONS[paths]:
+        pen1, pen2 = penalties_reference(guide, (dy, dx), p1, p2, sigma, None, 1.0)
+        path = np.zeros_like(cost)
+        ys = range(height) if dy >= 0 else range(height - 1, -1, -1)
+        xs = list(range(width)) if dx >= 0 else list(range(width - 1, -1, -1))
+        for y in ys:
+            for x in xs:
+                py, px = y - dy, x - dx
+                if not (0 <= py < height and 0 <= px < width):
+                    path[:, y, x] = cost[:, y, x]
+                    continue
+                previous = {starts[py, px] + k: path[k, py, px] for k in range(width_k)}
+                lowest = min(previous.values())
+                for k in range(width_k):
+                    d = starts[y, x] + k
+                    options = [lowest + pen2[y, x]]
+                    if d in previous:
+                        options.append(previous[d])
+                    options += [previous[e] + pen1[y, x] for e in (d - 1, d + 1) if e in previous]
+                    path[k, y, x] = cost[k, y, x] + min(options) - lowest
+        total += path
+    return total
+
+
+@pytest.mark.parametrize("paths", [4, 8])
+def test_band_paths_match_the_loop_reference(paths):
+    rng = np.random.default_rng(paths)
+    cost = rng.random((4, 6, 7)).astype(np.float32)
+    guide = rng.random((6, 7, 3)).astype(np.float32)
+    starts = rng.integers(3, 9, size=(6, 7)).astype(np.int32)  # neighbours overlap, or do not
+    run = jax.jit(lambda c, g, s: semi_global_sums(c, g, p1=0.1, p2=0.6, sigma=0.2,
+                                                   paths=paths, starts=s).sums)
+    ours = run(jnp.asarray(cost), jnp.asarray(guide), jnp.asarray(starts))
+    reference = band_semi_global_reference(cost, starts, guide, 0.1, 0.6, 0.2, paths)
+    np.testing.assert_allclose(ours, reference, atol=1e-5, rtol=1e-5)
+
+
+def test_band_paths_in_int16_match_the_reference_within_the_quantisation():
+    rng = np.random.default_rng(3)
+    cost = rng.random((5, 6, 9)).astype(np.float32)
+    guide = rng.random((6, 9, 1)).astype(np.float32)
+    starts = rng.integers(0, 4, size=(6, 9)).astype(np.int32)
+    quant = quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.6, cost_levels=255)
+    stored = quantise_cost(jnp.asarray(cost), quant)
+    ours = as_volume(semi_global_sums(stored, jnp.asarray(guide), p1=0.1, p2=0.6, sigma=0.2,
+                                      paths=4, cost_bound=1.0, cost_levels=255,
+                                      starts=jnp.asarray(starts)))
+    levels = np.asarray(stored, np.float64) * (2.0 / 255)  # the cost the paths saw
+    reference = band_semi_global_reference(levels, starts, guide, 0.1, 0.6, 0.2, 4)
+    np.testing.assert_allclose(ours, reference, atol=4 * 4 / float(quant.scale) + 1e-4)
+
+
+@pytest.mark.parametrize("paths", [4, 8])
+def test_a_band_that_is_the_whole_range_is_the_full_recursion(paths):
+    rng = np.random.default_rng(7)
+    cost = jnp.asarray(rng.random((6, 5, 8)).astype(np.float32))
+    guide = jnp.asarray(rng.random((5, 8, 3)).astype(np.float32))
+    options = dict(p1=0.1, p2=0.5, sigma=0.1, paths=paths)
+    full = semi_global_sums(cost, guide, **options).sums
+    band = semi_global_sums(cost, guide, starts=jnp.zeros((5, 8), jnp.int32), **options).sums
+    np.testing.assert_allclose(band, full, atol=1e-6)
