@@ -9,7 +9,8 @@
 ``optimizer``      semi-global optimisation (full and half resolution)
 ``selection``      winner-takes-all (Eq. 8) and the checks that reject pixels (Eq. 9)
 ``fill``           the fills of the rejected pixels, one class each
-``refinement``     the side-window median and coarse-to-fine
+``refinement``     the side-window median, coarse-to-fine and the smoothing of the map
+``band``           the full-resolution search of a few disparities around the map before it
 ``params``         ``Params``, the root; ``replace`` by stage, dotted option or old name
 ``legacy``         the old flat names (53 fields) and their mapping
 ``validate``       checks derived from the options' declarations; rules across stages
@@ -21,6 +22,7 @@
 from sswjax.config.aggregation import (Aggregator, BilateralAggregation, BoxAggregation,
                                        GuidedAggregation, IteratedGuidedAggregation,
                                        MedianAggregation, SideWindowAggregation)
+from sswjax.config.band import DisparityBand
 from sswjax.config.cost import LocalContrast, MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, Option, option, stage_config
 from sswjax.config.fill import (BackgroundFill, Fill, LeftBandFill, PlaneFill, VoteFill,
@@ -36,7 +38,7 @@ from sswjax.config.validate import check_params
 
 __all__ = [
     "Aggregator", "BackgroundFill", "BilateralAggregation", "BoxAggregation", "CoarseToFine",
-    "ConfigError", "DEFAULT_PRESET", "Fill", "GatedBilateralSmoothing", "GuidedAggregation", "HalfResolutionSemiGlobal",
+    "ConfigError", "DEFAULT_PRESET", "DisparityBand", "Fill", "GatedBilateralSmoothing", "GuidedAggregation", "HalfResolutionSemiGlobal",
     "IteratedGuidedAggregation", "LeftBandFill", "LeftRightCheck", "LocalContrast",
     "MatchingCost", "MedianAggregation", "Optimizer", "Option", "PRESETS", "Params", "Part",
     "PlaneFill", "Preprocessor", "SLOTS", "SemiGlobal", "SideWindowAggregation",

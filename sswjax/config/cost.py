@@ -11,6 +11,7 @@ import jax.numpy as jnp
 
 from sswjax.config.fields import ConfigError, Sigmoid, Simplex, option
 from sswjax.config.parts import Part, register
+from sswjax.stages.bands import band_cost
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_cost_at, matching_features
 from sswjax.stages.preprocess import local_contrast_normalization
 from sswjax.stages.segments import slic, slic_grid_shape
@@ -90,6 +91,11 @@ class MatchingCost(Part):
     def slices(self, features: MatchingFeatures, first, count: int) -> jax.Array:
         """Cost slices of disparities ``first .. first + count - 1``: float32 (count, H, W)."""
         return matching_cost(features, first, count, **self._terms())
+
+    def band(self, features: MatchingFeatures, starts: jax.Array, width: int) -> jax.Array:
+        """Cost over each pixel's band of ``width`` disparities from ``starts`` (int32 (H, W)):
+        float32 (width, H, W) (:func:`~sswjax.stages.bands.band_cost`)."""
+        return band_cost(features, starts, width=width, **self._terms())
 
     def at(self, features: MatchingFeatures, disparity: jax.Array) -> jax.Array:
         """The cost of each pixel at its own disparity (int32 (H, W)): float32 (H, W)."""

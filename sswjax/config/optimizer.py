@@ -14,7 +14,8 @@ import jax
 from sswjax.config.fields import ConfigError, Softplus, is_set, option, stage_config
 from sswjax.config.parts import Part, register
 from sswjax.stages.quantisation import SGM_DTYPES, PathSums, Quantisation, quantisation
-from sswjax.stages.sgm import PATH_COUNTS, half_resolution_semi_global, semi_global_sums
+from sswjax.stages.cross_scale import half_resolution_semi_global
+from sswjax.stages.sgm import PATH_COUNTS, semi_global_sums
 
 __all__ = ["HalfResolutionSemiGlobal", "Optimizer", "SemiGlobal"]
 
@@ -29,9 +30,12 @@ class Optimizer(Part):
 
     uses_segments = False
     subpixel_on_input = False
+    searches_bands = False
 
-    def optimise(self, cost, guide, *, labels, cost_bound) -> PathSums | jax.Array:
-        """The optimised volume (module docstring)."""
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None) -> PathSums | jax.Array:
+        """The optimised volume (module docstring); with ``starts`` (int32 (H, W)) ``cost`` is
+        a band volume (:mod:`sswjax.stages.bands`), for the optimisers that
+        ``searches_bands``."""
         raise NotImplementedError
 
     def storage(self, cost_bound) -> Quantisation | None:
@@ -73,6 +77,7 @@ class SemiGlobal(_Penalties):
                                         "(with segments)")
 
     uses_segments = True
+    searches_bands = True
 
     def validate(self, params) -> None:
         """The segment factor acts only with superpixels."""
@@ -80,11 +85,12 @@ class SemiGlobal(_Penalties):
             raise ConfigError("optimizer.segment_factor", "parameter optimizer.segment_factor "
                               "acts only with superpixels (segments is None)")
 
-    def optimise(self, cost, guide, *, labels, cost_bound):
-        """:func:`~sswjax.stages.sgm.semi_global_sums` (PathSums)."""
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None):
+        """:func:`~sswjax.stages.sgm.semi_global_sums` (PathSums), over bands with
+        ``starts``."""
         return semi_global_sums(cost, guide, p1=self.p1, p2=self.p2, sigma=self.sigma,
                                 paths=self.paths, labels=labels,
-                                segment_factor=self.segment_factor,
+                                segment_factor=self.segment_factor, starts=starts,
                                 **self._quantisation(cost_bound))
 
     def storage(self, cost_bound):
@@ -105,8 +111,8 @@ class HalfResolutionSemiGlobal(_Penalties):
 
     subpixel_on_input = True
 
-    def optimise(self, cost, guide, *, labels, cost_bound):
-        """:func:`~sswjax.stages.sgm.half_resolution_semi_global` (float32 volume)."""
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None):
+        """:func:`~sswjax.stages.cross_scale.half_resolution_semi_global` (float32 volume)."""
         return half_resolution_semi_global(cost, guide, p1=self.p1, p2=self.p2,
                                            sigma=self.sigma, paths=self.paths,
                                            detail_weight=self.detail_weight,

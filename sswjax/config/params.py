@@ -17,6 +17,7 @@ import dataclasses
 from collections.abc import Iterator, Mapping
 
 from sswjax.config.aggregation import Aggregator, SideWindowAggregation
+from sswjax.config.band import DisparityBand
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
@@ -60,6 +61,7 @@ class Params:
     fill: Fill | None = dataclasses.field(default_factory=BackgroundFill)
     refinement: SideWindowMedian | None = dataclasses.field(default_factory=SideWindowMedian)
     coarse: CoarseToFine | None = None
+    band: DisparityBand | None = None
     smoothing: GatedBilateralSmoothing | None = None
 
     def stages(self) -> Iterator[tuple[str, object]]:

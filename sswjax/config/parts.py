@@ -54,6 +54,8 @@ SLOTS: dict[str, Slot] = {slot.name: slot for slot in (
     Slot("fill", "how the rejected pixels are filled (Eq. 9)", True, True),
     Slot("refinement", "the median over the disparity map", True, False),
     Slot("coarse", "the method on the pair halved, the map doubled back", True, False),
+    Slot("band", "a full-resolution search of a few disparities around the map before it",
+         True, False),
     Slot("smoothing", "edge-aware smoothing of the finished map, at full resolution", True,
          False),
 )}
