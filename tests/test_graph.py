@@ -367,3 +367,23 @@ def test_smoothing_is_the_last_stage_on_the_full_resolution_map(pair, preset):
     np.testing.assert_allclose(np.asarray(smoothed),
                                np.asarray(smoothing.smooth(plain, left, NDISP)), atol=1e-5)
     assert not np.allclose(np.asarray(smoothed), np.asarray(plain))
+
+
+def test_a_band_as_wide_as_the_range_is_the_method_without_it(pair):
+    """Band width = ndisp: every pixel's band is the whole range, so the band pass repeats
+    the full-range method exactly (cost, aggregation, paths, checks, fill), whatever map it
+    is centred on (the full-range map, or the coarse pass's); a narrow band around a right
+    map still recovers the shift."""
+    left, right = map(jnp.asarray, pair)
+    full = sswjax.preset("accurate").replace(smoothing=None)
+    reference = np.asarray(ssw_disparity(left, right, full, ndisp=NDISP))
+    wide = sswjax.config.DisparityBand(width=NDISP)
+    for base in (full, full.replace(coarse=sswjax.config.CoarseToFine(levels=1))):
+        np.testing.assert_array_equal(
+            np.asarray(ssw_disparity(left, right, base.replace(band=wide), ndisp=NDISP)),
+            reference)
+    narrow = full.replace(band=sswjax.config.DisparityBand(width=3))
+    banded = np.asarray(ssw_disparity(left, right, narrow, ndisp=NDISP))
+    assert np.isfinite(banded).all() and banded.min() >= 0 and banded.max() <= NDISP - 1
+    inner = banded[:, SHIFT + MARGIN:]
+    assert np.abs(inner - SHIFT).max() <= 0.5

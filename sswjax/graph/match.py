@@ -17,6 +17,7 @@ import jax
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
 from sswjax.config import Params
+from sswjax.graph.band import match_band
 from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
 from sswjax.graph.scopes import Stage, scope
@@ -71,14 +72,18 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
 
     Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
     optimiser the volume is stored, optimised and folded; without one each block is folded
-    as soon as it is aggregated.
+    as soon as it is aggregated. With a band, the method then runs again over a few
+    disparities around that map (:mod:`sswjax.graph.band`).
     """
     check_pair(left, right, ndisp)
     limit = ndisp if valid_ndisp is None else valid_ndisp
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
-        # The smoothing acts once, on the full-resolution map.
-        disparity, cues = match_coarse_to_fine(left, right, params.replace(smoothing=None),
+        # The smoothing acts once, on the full-resolution map; the band at every level that
+        # has a coarser one below it.
+        band = params.band if params.coarse.levels > 1 else None
+        disparity, cues = match_coarse_to_fine(left, right,
+                                               params.replace(smoothing=None, band=band),
                                                ndisp, valid_ndisp, inner)
     else:
         scene = prepare_scene(left, right, params)
@@ -89,6 +94,9 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
             selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
                                         chunk=chunk)
         disparity, cues = refine(selected, scene, params, limit)
+    if params.band is not None:
+        # Again over a few disparities around that map, at this resolution.
+        disparity, cues = match_band(left, right, params, disparity, ndisp=ndisp, limit=limit)
     if params.smoothing is not None:
         with scope(Stage.SMOOTHING):
             disparity = params.smoothing.smooth(disparity, left, limit)
