@@ -70,8 +70,10 @@ def stage_profile(left, right, params, ndisp) -> dict[str, float]:
         op = names.get(event.get("name"))
         if event.get("ph") != "X" or op is None or event["name"].startswith("while"):
             continue
-        stage = next((s for s in STAGES if f"/{s}/" in op or op.endswith(f"/{s}")), None)
-        if stage is not None:
+        # The outermost stage scope wins: the band's cost, paths and fill count as the band.
+        found = [(f"{op}/".find(f"/{s}/"), s) for s in STAGES if f"/{s}/" in f"{op}/"]
+        if found:
+            stage = min(found)[1]
             seconds[stage] += event["dur"] / 1e6
     return seconds
 

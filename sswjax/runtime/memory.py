@@ -33,6 +33,10 @@ its table is in ``docs/speed-and-memory.md``. The terms:
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
 
+With a band (``params.band``), its ``K``-plane volume at the window's full size is counted as
+a whole volume (``volume``, and ``sgm`` with the optimiser) of ``h * w * K`` besides the terms
+of the pass it is centred on: the cost, its aggregation and the paths' sums over the band.
+
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
 measured size the estimate is above the measured peak (by at most :data:`STATED_RATIO`). The
@@ -150,14 +154,15 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
     whole = chunk == 0 or chunk >= ndisp
     optimizer = params.optimizer
     sgm = optimizer is not None
+    band = 0.0 if params.band is None else plane * min(params.band.width, ndisp * 2 ** levels)
     return {
         "base": 1.0,
         "image": float(height * width * channels),
         "window": plane,
         "slic": matched if params.segments is not None else 0.0,
         "blocks": 0.0 if whole else matched * min(chunk, ndisp),
-        "volume": matched * ndisp if whole else 0.0,
-        "sgm": matched * ndisp if sgm else 0.0,
+        "volume": (matched * ndisp if whole else 0.0) + band,
+        "sgm": matched * ndisp + band if sgm else 0.0,
         "sgm_wide": matched * ndisp if sgm and optimizer.dtype != "uint8" else 0.0,
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
     }
