@@ -98,14 +98,20 @@ def main(argv=None) -> int:
                     rows[text][f"{set_name} {key} {region}"] = _average(values, scoring)
     rows = list(rows.values())
     write_report(args.output, "smoothing", _table(rows), rows, list(rows[0]))
+    write_held_out(args.output, rows)
+    return 0
+
+
+def write_held_out(output: Path, rows: list[dict]) -> None:
+    """``held_out.md`` (the rule on bad 2.0) and ``held_out_thresholds.md`` (on 2.0, 1.0 and
+    0.5) of ``rows`` (this module's CSV format), with their CSV files, into ``output``."""
     errors = {row["config"]: {
         "trainingQ": (row["trainingQ bad2.0 nonocc"] + row["trainingQ bad2.0 all"]) / 2,
         "KITTI2012": row["KITTI2012 bad2.0 all"],
         "Middlebury2001": row["Middlebury2001 bad2.0 all"]} for row in rows}
     for stem, folds in (("held_out", held_out_rows(errors)),
                         ("held_out_thresholds", thresholds_folds(rows))):
-        write_report(args.output, stem, _table(folds), folds, list(folds[0]))
-    return 0
+        write_report(output, stem, _table(folds), folds, list(folds[0]))
 
 
 def thresholds_folds(rows: list[dict]) -> list[dict]:
