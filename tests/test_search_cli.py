@@ -147,6 +147,13 @@ def test_a_preset_with_a_coarse_pass_is_refused(user_folder, tmp_path, run_cli):
     assert code == 2 and "coarse pass" in err
 
 
+def test_a_band_is_refused(user_folder, tmp_path, run_cli):
+    code, _, err = run_cli(["search", "--data", user_folder, "-o", tmp_path / "p.json",
+                            "--preset", "accurate", "--set", "band=around-map"])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "(band is set)" in err
+    assert not (tmp_path / "p.json").exists()
+
+
 def test_the_grid_runs_after_the_continuous_search_and_is_kept(user_folder, tmp_path, run_cli):
     out = tmp_path / "paper.json"
     args = ["--no-cache", "search", "--data", user_folder, "-o", out, "--preset", "paper",

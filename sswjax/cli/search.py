@@ -140,6 +140,9 @@ def run_search_command(args: argparse.Namespace) -> int:
         raise ValueError("the search runs the full-resolution volume; a preset with a coarse "
                          "pass (coarse is set) cannot be searched: start from accurate, paper "
                          "or finest")
+    if base.band is not None:
+        raise ValueError("the search runs the full-range volume; a configuration with a band "
+                         "(band is set) cannot be searched: start from accurate, paper or finest")
     settings = _settings(args)
     output = args.output
     check_output_files(output)

@@ -15,6 +15,8 @@ the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the te
 ``guided``        the guided filter and its iterated form (GF, iGF)
 ``quantisation``  the cost stored in int16 / uint8 levels for the paths, and their sums read back
 ``sgm``           semi-global optimisation of the aggregated volume (Hirschmuller 2008)
+``cross_scale``   semi-global paths at half resolution with the fine cost's detail
+``bands``         per-pixel disparity bands around an estimate (tSGM, Rothermel et al. 2012)
 ``selection``     the running fold of both views' winners, sub-pixel, soft-argmin (Eq. 8)
 ``refinement``    the left-right distance, uniqueness test and background filling (Eq. 9)
 ``fill``          guided weighted-median and vote fills of the rejected pixels (Eq. 9, weighted)
@@ -22,6 +24,8 @@ the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the te
 ``planes``        robust plane per superpixel, filling the pixels it supports
 ``pyramid``       halving and doubling of images and volumes (half-resolution SGM)
 ``upsampling``    the coarse map doubled back, guided by the fine image (coarse-to-fine)
+``smoothing``     the gated joint-bilateral mean of the finished map
+``buffers``       values written once instead of recomputed by each reader (XLA fusion)
 ``reference``     direct whole-volume versions the tests check the live stages against
 ================  ================================================================================
 """
