@@ -51,7 +51,7 @@ print(json.dumps({"peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1
 
 # (height, width, ndisp, preset, parameter changes): Motorcycle Q, Vintage Q's size, the H and
 # full-resolution sizes, tiny sizes (the constant), chunks, strips, the int16 storage, 8 paths,
-# no SLIC.
+# no SLIC, the band.
 CONFIGS = [
     (64, 96, 16, "paper", {}),
     (64, 96, 16, "accurate", {}),
@@ -75,6 +75,9 @@ CONFIGS = [
     (994, 1482, 140, "accurate", {}),
     (1988, 2964, 280, "paper", {}),
     (1988, 2964, 280, "accurate", {"strip_rows": 64}),
+    (497, 741, 70, "balanced", {}),
+    (480, 722, 190, "balanced", {}),
+    (994, 1482, 140, "balanced", {}),
 ]
 
 TINY = 10_000  # pixels: pairs this small measure the compile floor, not the terms

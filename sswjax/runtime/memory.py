@@ -35,7 +35,13 @@ its table is in ``docs/speed-and-memory.md``. The terms:
 
 With a band (``params.band``), its ``K``-plane volume at the window's full size is counted as
 a whole volume (``volume``, and ``sgm`` with the optimiser) of ``h * w * K`` besides the terms
-of the pass it is centred on: the cost, its aggregation and the paths' sums over the band.
+of the pass it is centred on: the cost, its aggregation and the paths' sums over the band; and
+
+``band``
+    1 with a band: the larger graph's compilation and buffers, a constant. Not fitted by
+    ``benchmarks/memory_model.py`` yet: set from ``balanced``'s peaks on Motorcycle, Vintage
+    and Motorcycle doubled (497 x 741 x 70, 480 x 722 x 190, 994 x 1482 x 140), which the
+    other terms underestimated by 0.14 to 0.17 GB before the margin.
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
@@ -105,6 +111,7 @@ COEFFICIENTS: dict[str, float] = {
     "sgm": 4.749,
     "sgm_wide": 2.625,
     "sgm8": 0.4593,
+    "band": 1.75e8,
 }
 """Bytes per unit of each term, fitted by ``benchmarks/memory_model.py``."""
 
@@ -165,6 +172,7 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
         "sgm": matched * ndisp + band if sgm else 0.0,
         "sgm_wide": matched * ndisp if sgm and optimizer.dtype != "uint8" else 0.0,
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
+        "band": 0.0 if params.band is None else 1.0,
     }
 
 
