@@ -32,16 +32,8 @@ its table is in ``docs/speed-and-memory.md``. The terms:
     ``"float32"``: the float32 volume written whole, then its two int16 copies).
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
-
-With a band (``params.band``), its ``K``-plane volume at the window's full size is counted as
-a whole volume (``volume``, and ``sgm`` with the optimiser) of ``h * w * K`` besides the terms
-of the pass it is centred on: the cost, its aggregation and the paths' sums over the band; and
-
 ``band``
-    1 with a band: the larger graph's compilation and buffers, a constant. Not fitted by
-    ``benchmarks/memory_model.py`` yet: set from ``balanced``'s peaks on Motorcycle, Vintage
-    and Motorcycle doubled (497 x 741 x 70, 480 x 722 x 190, 994 x 1482 x 140), which the
-    other terms underestimated by 0.14 to 0.17 GB before the margin.
+    1 with a band: its graph's compilation; its ``h * w * K`` adds to ``volume`` and ``sgm``.
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
@@ -113,7 +105,7 @@ COEFFICIENTS: dict[str, float] = {
     "sgm8": 0.4593,
     "band": 1.75e8,
 }
-"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py``."""
+"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (``band`` by hand)."""
 
 COMPILE_FLOOR: dict[str, float] = {"none": 0.496e9, "sgm": 0.453e9}
 """Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling the graph, without and
