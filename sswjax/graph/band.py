@@ -69,17 +69,18 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
 
 
 def match_band(left: jax.Array, right: jax.Array, params: Params, estimate: jax.Array, *,
-               ndisp: int, limit) -> tuple[jax.Array, ConfidenceCues]:
+               ndisp: int, limit, scene: Scene | None = None) -> tuple[jax.Array, ConfidenceCues]:
     """``params.band``: the winners over the band around ``estimate`` (:func:`select_band`),
     then the refinement of :func:`~sswjax.graph.refine.refine` (parabola, checks, fill,
-    median) at full resolution.
+    median) at full resolution. ``scene``: the pair's, when the pass before prepared it at
+    this resolution (else prepared here).
 
     Returns
     -------
     (float32 (H, W), ConfidenceCues)
     """
     with scope(Stage.BAND):
-        scene = prepare_scene(left, right, params)
+        scene = prepare_scene(left, right, params) if scene is None else scene
         selected = select_band(scene, params, estimate, ndisp=ndisp, limit=limit)
         return refine(selected, scene, params, limit)
 

@@ -77,6 +77,7 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
     """
     check_pair(left, right, ndisp)
     limit = ndisp if valid_ndisp is None else valid_ndisp
+    scene = None
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
         # The smoothing acts once, on the full-resolution map; the band at every level that
@@ -96,7 +97,8 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
         disparity, cues = refine(selected, scene, params, limit)
     if params.band is not None:
         # Again over a few disparities around that map, at this resolution.
-        disparity, cues = match_band(left, right, params, disparity, ndisp=ndisp, limit=limit)
+        disparity, cues = match_band(left, right, params, disparity, ndisp=ndisp, limit=limit,
+                                     scene=scene)
     if params.smoothing is not None:
         with scope(Stage.SMOOTHING):
             disparity = params.smoothing.smooth(disparity, left, limit)
