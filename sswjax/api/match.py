@@ -25,9 +25,10 @@ from sswjax.stages.confidence import DEFAULT_MEASURE, DEFAULT_THRESHOLD, MEASURE
 
 __all__ = ["Matched", "match", "match_graph", "match_with_confidence", "resolve_plan"]
 
-_DISPARITY = bounded(ssw_disparity, static_argnames=("ndisp", "chunk"))
-_OUTPUTS = bounded(ssw_outputs, static_argnames=("ndisp", "chunk", "measure"))
-"""The graphs of the entry points, their executables bounded (:mod:`sswjax.runtime.executables`)."""
+_DISPARITY = bounded(ssw_disparity, static_argnames=("ndisp", "chunk"), stored=True)
+_OUTPUTS = bounded(ssw_outputs, static_argnames=("ndisp", "chunk", "measure"), stored=True)
+"""The graphs of the entry points, their executables bounded (:mod:`sswjax.runtime.executables`)
+and, with the compilation cache on, their traces stored (:mod:`sswjax.runtime.stored`)."""
 
 
 def match(

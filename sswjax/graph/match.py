@@ -145,6 +145,10 @@ class SSWOutputs(NamedTuple):
     lr_failed: jax.Array
 
 
+# A stored graph's results are a pytree jax.export writes by this name (sswjax.runtime.stored).
+jax.export.register_namedtuple_serialization(SSWOutputs, serialized_name="sswjax.SSWOutputs")
+
+
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
 def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
                 valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE

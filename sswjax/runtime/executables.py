@@ -27,6 +27,8 @@ from collections.abc import Callable, Hashable, Sequence
 import jax
 import numpy as np
 
+from sswjax.runtime.stored import StoredGraph, graph_folder
+
 __all__ = ["DEFAULT_LIMIT", "EXECUTABLES", "BoundedJit", "ExecutableCache", "bounded"]
 
 DEFAULT_LIMIT = 32
@@ -115,26 +117,36 @@ class BoundedJit:
     """``jax.jit(fn, static_argnames=...)`` whose compiled graphs live in :data:`EXECUTABLES`.
 
     Called like the jitted function; each distinct call signature gets a jitted copy of ``fn``
-    of its own, kept while it is among the most recently used.
+    of its own, kept while it is among the most recently used. With ``stored``, and the
+    persistent compilation cache on, each signature's trace is kept on disk
+    (:class:`sswjax.runtime.stored.StoredGraph`), so another process skips tracing it.
     """
 
     def __init__(self, fn: Callable, *, static_argnames: Sequence[str],
-                 cache: ExecutableCache | None = None):
+                 cache: ExecutableCache | None = None, stored: bool = False):
         self._fn = getattr(fn, "__wrapped__", fn)  # a jitted function: the Python one under it
         self._static = tuple(static_argnames)
         self._cache = EXECUTABLES if cache is None else cache
+        self._stored = stored
         functools.update_wrapper(self, self._fn)
+
+    def _jit(self, args: tuple, kwargs: dict) -> Callable:
+        folder = graph_folder() if self._stored else None
+        if folder is None:
+            return jax.jit(_fresh(self._fn), static_argnames=self._static)
+        return StoredGraph(self._fn, args, kwargs, static=self._static, folder=folder)
 
     def __call__(self, *args, **kwargs):
         key = (self._fn, _signature(args, kwargs, self._static))
-        jitted = self._cache.jitted(key, lambda: jax.jit(_fresh(self._fn),
-                                                         static_argnames=self._static))
+        jitted = self._cache.jitted(key, lambda: self._jit(args, kwargs))
         return jitted(*args, **kwargs)
 
 
-def bounded(fn: Callable, *, static_argnames: Sequence[str]) -> BoundedJit:
+def bounded(fn: Callable, *, static_argnames: Sequence[str], stored: bool = False
+            ) -> BoundedJit:
     """``fn`` (a Python function, or a ``jax.jit`` of one) jitted with its executables bounded
-    by :data:`EXECUTABLES`.
+    by :data:`EXECUTABLES`; ``stored``: its traces kept on disk beside the persistent
+    compilation cache, when that is on (:mod:`sswjax.runtime.stored`).
 
     Examples
     --------
@@ -143,4 +155,4 @@ def bounded(fn: Callable, *, static_argnames: Sequence[str]) -> BoundedJit:
     >>> [float(double(jnp.ones(k), n=2).sum()) for k in (1, 2, 3)]
     [2.0, 4.0, 6.0]
     """
-    return BoundedJit(fn, static_argnames=static_argnames)
+    return BoundedJit(fn, static_argnames=static_argnames, stored=stored)
