@@ -18,6 +18,7 @@ API.
 from sswjax._version import __version__
 from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
 from sswjax.api.match import Matched, match, match_with_confidence
+from sswjax.api.warmup import warm_up
 from sswjax.config import (DEFAULT_PRESET, PRESETS, ConfigError, Params, check_params,
                            default_params, load_params, preset, save_params)
 from sswjax.data.calibration import read_calibration
@@ -51,5 +52,6 @@ __all__ = [
     "save_params",
     "ssw_disparity",
     "ssw_outputs",
+    "warm_up",
     "write_ply",
 ]

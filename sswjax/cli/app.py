@@ -1,5 +1,5 @@
 """The ``sswjax`` command line: ``match``, ``demo``, ``evaluate``, ``download``, ``params``,
-``rectify`` and ``search``.
+``rectify``, ``search`` and ``warmup``.
 
 Errors in the user's input (files, sizes, parameters, memory) print one line on stderr and
 exit with status 2; ``--debug`` shows the traceback instead. Every output is written to a
@@ -22,6 +22,7 @@ from sswjax.cli.match import add_match_command
 from sswjax.cli.params import add_params_command
 from sswjax.cli.rectify import add_rectify_command
 from sswjax.cli.search import add_search_command
+from sswjax.cli.warmup import add_warmup_command
 from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
 from sswjax.runtime.memory import MemoryEstimateError
 
@@ -41,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "default ~/.cache/sswjax/xla)")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for add in (add_match_command, add_demo_command, add_evaluate_command,
-                add_download_command, add_params_command, add_rectify_command, add_search_command):
+                add_download_command, add_params_command, add_rectify_command, add_search_command,
+                add_warmup_command):
         add(commands)
     return parser
 

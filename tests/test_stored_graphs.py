@@ -1,0 +1,135 @@
+"""Traced graphs stored on disk (sswjax.runtime.stored) and ``sswjax warmup``: a stored graph
+gives jax.jit's results bit for bit, is found again by the same signature only, survives a
+damaged file; a warmed shape is matched in a new process without tracing or compiling."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sswjax
+from sswjax.graph import ssw_disparity, ssw_outputs
+from sswjax.runtime.stored import StoredGraph, graph_key, source_digest
+
+_STATIC = ("ndisp", "chunk", "measure")
+# The paper's method without segments and smoothing: the quickest graph to compile here.
+_PARAMS = sswjax.preset("paper").replace(segments=None, smoothing=None)
+
+
+@pytest.fixture(scope="module")
+def pair():
+    rng = np.random.default_rng(3)
+    right = rng.random((20, 36, 3), dtype=np.float32)
+    return jnp.asarray(np.roll(right, 3, axis=1)), jnp.asarray(right)
+
+
+def _stored(fn, folder, left, right, params, **static):
+    return StoredGraph(fn, (left, right, params), static, static=_STATIC, folder=folder)
+
+
+def test_a_stored_graph_gives_the_jitted_results_bit_for_bit(tmp_path, pair):
+    fn = ssw_outputs  # a namedtuple of results (ssw_disparity's array: the tests below)
+    first = _stored(fn.__wrapped__, tmp_path, *pair, _PARAMS, ndisp=8)
+    assert not first.loaded and len(list(tmp_path.glob("*.jaxexport"))) == 1
+    again = _stored(fn.__wrapped__, tmp_path, *pair, _PARAMS, ndisp=8)
+    assert again.loaded
+    expected = fn(*pair, _PARAMS, ndisp=8)
+    got = again(*pair, _PARAMS, ndisp=8)
+    assert type(got) is type(expected)
+    for a, b in zip(got, expected):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_another_signature_is_another_graph(tmp_path, pair):
+    params = _PARAMS
+    fn = ssw_disparity.__wrapped__
+    _stored(fn, tmp_path, *pair, params, ndisp=8)
+    assert not _stored(fn, tmp_path, *pair, params, ndisp=9).loaded  # a static argument
+    changed = params.replace(aggregation=params.aggregation.replace(iterations=1))  # static
+    assert not _stored(fn, tmp_path, *pair, changed, ndisp=8).loaded
+    traced = params.replace(cost=params.cost.replace(tad_weight=0.1))  # a traced option
+    graph = _stored(fn, tmp_path, *pair, traced, ndisp=8)
+    assert graph.loaded  # the same graph, called with another value
+    np.testing.assert_array_equal(np.asarray(graph(*pair, traced, ndisp=8)),
+                                  np.asarray(ssw_disparity(*pair, traced, ndisp=8)))
+    smaller = tuple(image[:, :-1] for image in pair)
+    assert not _stored(fn, tmp_path, *smaller, params, ndisp=8).loaded  # a shape
+    assert len(list(tmp_path.glob("*.jaxexport"))) == 4
+
+
+def test_the_key_holds_the_source_and_the_static_values(pair):
+    leaves, treedef = jax.tree_util.tree_flatten(((*pair, _PARAMS), {}))
+    specs = [jax.ShapeDtypeStruct(np.shape(x), jnp.result_type(x)) for x in leaves]
+    key = graph_key(ssw_disparity, treedef, specs, {"ndisp": 8})
+    assert key.startswith("ssw_disparity-") and key.endswith(".jaxexport")
+    assert key != graph_key(ssw_disparity, treedef, specs, {"ndisp": 9})
+    assert len(source_digest()) == 64
+
+
+def test_a_damaged_stored_graph_is_traced_and_stored_anew(tmp_path, pair):
+    params = _PARAMS
+    fn = ssw_disparity.__wrapped__
+    _stored(fn, tmp_path, *pair, params, ndisp=8)
+    (path,) = tmp_path.glob("*.jaxexport")
+    path.write_bytes(path.read_bytes()[:100])
+    graph = _stored(fn, tmp_path, *pair, params, ndisp=8)
+    assert not graph.loaded and path.stat().st_size > 100
+    np.testing.assert_array_equal(np.asarray(graph(*pair, params, ndisp=8)),
+                                  np.asarray(ssw_disparity(*pair, params, ndisp=8)))
+    assert _stored(fn, tmp_path, *pair, params, ndisp=8).loaded
+
+
+def _cli(*args, cache):
+    env = dict(os.environ, SSWJAX_CACHE_DIR=str(cache))
+    return subprocess.run([sys.executable, "-m", "sswjax.cli", *map(str, args)], env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def _files(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+
+
+_QUICK = ["--preset", "paper", "--set", "segments=none", "--set", "smoothing=none"]
+
+
+def test_a_warmed_shape_is_matched_without_tracing_or_compiling(small_pair, tmp_path):
+    cache, files = tmp_path / "cache", small_pair.folder
+    warmed = _cli("warmup", "--size", "40x24", "--gray", "--ndisp", 8, *_QUICK, cache=cache)
+    assert warmed.returncode == 0, warmed.stderr
+    assert "compiled 1 shape" in warmed.stdout
+    before = _files(cache)
+    assert any(name.startswith("graphs/") for name in before)
+    pair = (files / "left_gray.png", files / "right_gray.png")
+    matched = _cli("match", *pair, "--ndisp", 8, *_QUICK, "-o", tmp_path / "d.pfm", cache=cache)
+    assert matched.returncode == 0, matched.stderr
+    assert _files(cache) == before  # nothing traced, nothing compiled: all found
+    plain = _cli("--no-cache", "match", *pair, "--ndisp", 8, *_QUICK, "-o",
+                 tmp_path / "plain.pfm", cache=tmp_path / "unused")
+    assert plain.returncode == 0, plain.stderr
+    assert (tmp_path / "d.pfm").read_bytes() == (tmp_path / "plain.pfm").read_bytes()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--ndisp", "8"], "name the sizes to compile for"),
+    (["--size", "40x24", "--ndisp", "0"], "--ndisp must be >= 1"),
+    (["--size", "40x0", "--ndisp", "8"], "a size is WIDTHxHEIGHT"),
+    (["--size", "40x24", "--ndisp", "8", "--workers", "2"], "warmup compiles in this process"),
+])
+def test_warmup_refuses_bad_requests(tmp_path, args, message):
+    done = _cli("warmup", *args, cache=tmp_path / "cache")
+    assert done.returncode == 2 and message in done.stderr, done.stderr
+    assert done.stderr.count("\n") == 1 or "usage:" in done.stderr
+
+
+def test_warmup_needs_the_cache_and_images_to_be_like(tmp_path):
+    done = _cli("--no-cache", "warmup", "--size", "40x24", "--ndisp", "8", cache=tmp_path / "c")
+    assert done.returncode == 2 and "--no-cache" in done.stderr, done.stderr
+    (tmp_path / "empty").mkdir()
+    done = _cli("warmup", "--like", tmp_path / "empty", "--ndisp", "8", cache=tmp_path / "c")
+    assert done.returncode == 2 and "no images in this folder" in done.stderr, done.stderr
