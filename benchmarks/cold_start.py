@@ -4,10 +4,11 @@ For each preset, in new Python processes (nothing shared with this one but the f
 
 1. ``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` from the command line, timed from outside
    (process start to exit), first with an empty compilation cache (a new folder), then again
-   with that folder warm.
-2. The same pair through the API, the phases timed inside the process: ``import sswjax``,
-   tracing and lowering of the graph (``jax.jit(...).lower``), compiling it (or loading it from
-   the persistent cache), the first run, and a warm run.
+   with that folder warm, and in a fresh folder after ``sswjax warmup --like LEFT``.
+2. The same pair through the API's stored graph (:mod:`sswjax.runtime.stored`), the phases
+   timed inside the process: ``import sswjax``, tracing the graph (empty cache) or loading its
+   stored trace (warm), lowering it, compiling it (or loading it from the persistent cache),
+   the first run, and a warm run.
 
 Each measurement is repeated ``--repeat`` times in fresh processes and the median reported;
 the machine's noise shows in the spread, printed beside it.
@@ -31,7 +32,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from _report import write_report  # noqa: E402
 
-PHASES = ("import", "read", "trace", "compile", "first run", "warm run")
+PHASES = ("import", "read", "trace or load", "lower", "compile", "first run", "warm run")
 
 _CHILD = r"""
 import json, sys, time
@@ -42,6 +43,7 @@ from sswjax.api.images import prepare_pair
 from sswjax.data.io import read_image
 from sswjax.graph import ssw_disparity
 from sswjax.runtime.compilation import enable_compilation_cache
+from sswjax.runtime.stored import StoredGraph, graph_folder
 times = {"import": time.perf_counter() - start}
 enable_compilation_cache(path=sys.argv[4])
 t = time.perf_counter()
@@ -50,19 +52,34 @@ left, right = jax.numpy.asarray(left), jax.numpy.asarray(right)
 params, ndisp = sswjax.preset(sys.argv[5]), int(sys.argv[3])
 times["read"] = time.perf_counter() - t
 t = time.perf_counter()
-lowered = ssw_disparity.lower(left, right, params, ndisp=ndisp)
-times["trace"] = time.perf_counter() - t
+graph = StoredGraph(ssw_disparity.__wrapped__, (left, right, params), {"ndisp": ndisp},
+                    static=("ndisp", "chunk"), folder=graph_folder())
+times["trace or load"] = time.perf_counter() - t
+t = time.perf_counter()
+lowered = graph.lower(left, right, params, ndisp=ndisp)
+times["lower"] = time.perf_counter() - t
 t = time.perf_counter()
 compiled = lowered.compile()
 times["compile"] = time.perf_counter() - t
+leaves = graph.flat(left, right, params, ndisp=ndisp)
 t = time.perf_counter()
-np.asarray(compiled(left, right, params))
+np.asarray(compiled(*leaves))
 times["first run"] = time.perf_counter() - t
 t = time.perf_counter()
-np.asarray(compiled(left, right, params))
+np.asarray(compiled(*leaves))
 times["warm run"] = time.perf_counter() - t
 print(json.dumps(times))
 """
+
+
+def warmup_seconds(left: Path, ndisp: int, preset: str, cache: Path) -> float:
+    """Wall time of ``sswjax warmup --like LEFT`` in a new process, with ``cache``."""
+    env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
+    command = [sys.executable, "-m", "sswjax.cli", "warmup", "--like", str(left),
+               "--ndisp", str(ndisp), "--preset", preset]
+    start = time.perf_counter()
+    subprocess.run(command, env=env, check=True, capture_output=True)
+    return time.perf_counter() - start
 
 
 def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -> float:
@@ -91,25 +108,28 @@ def spread(values: list[float]) -> str:
 
 
 def measure(left: Path, right: Path, ndisp: int, preset: str, repeat: int) -> list[dict]:
-    """Rows of the report for one preset: CLI and API, empty and warm cache."""
+    """Rows of the report for one preset: CLI (empty, warm, after ``sswjax warmup``) and API
+    (empty, warm)."""
     rows = []
-    for surface in ("CLI", "API"):
-        for state in ("empty", "warm"):
-            runs = []
-            for _ in range(repeat):
-                with tempfile.TemporaryDirectory() as cache:
-                    once = cli_seconds if surface == "CLI" else api_phases
-                    first = once(left, right, ndisp, preset, Path(cache))
-                    runs.append(first if state == "empty" else
-                                once(left, right, ndisp, preset, Path(cache)))
-            row = {"preset": preset, "surface": surface, "cache": state}
-            if surface == "CLI":
-                row["total"] = spread(runs)
-            else:
-                row.update({phase: spread([r[phase] for r in runs]) for phase in PHASES})
-                row["total"] = spread([r["process"] for r in runs])
-            rows.append(row)
-            print(row, flush=True)
+    for surface, state in [("CLI", "empty"), ("CLI", "warm"), ("CLI", "after warmup"),
+                           ("API", "empty"), ("API", "warm")]:
+        runs = []
+        once = cli_seconds if surface == "CLI" else api_phases
+        for _ in range(repeat):
+            with tempfile.TemporaryDirectory() as cache:
+                if state == "after warmup":  # the cache filled by sswjax warmup --like
+                    warmup_seconds(left, ndisp, preset, Path(cache))
+                first = once(left, right, ndisp, preset, Path(cache))
+                runs.append(once(left, right, ndisp, preset, Path(cache))
+                            if state == "warm" else first)
+        row = {"preset": preset, "surface": surface, "cache": state}
+        if surface == "CLI":
+            row["total"] = spread(runs)
+        else:
+            row.update({phase: spread([r[phase] for r in runs]) for phase in PHASES})
+            row["total"] = spread([r["process"] for r in runs])
+        rows.append(row)
+        print(row, flush=True)
     return rows
 
 

@@ -160,11 +160,20 @@ class StoredGraph:
         traced = (args, {k: v for k, v in kwargs.items() if k not in static})
         return jax.tree_util.tree_flatten(traced)
 
-    def __call__(self, *args, **kwargs):
+    def flat(self, *args, **kwargs) -> list:
+        """The traced leaves of a call, in the order the stored graph takes them."""
         leaves, treedef = self._flatten(args, kwargs, self._static)
         if treedef != self._treedef:
             raise TypeError("a stored graph was called with another pytree structure")
-        return self._call(*leaves)
+        return leaves
+
+    def lower(self, *args, **kwargs):
+        """``jax.stages.Lowered`` of a call (its ``compile()`` takes :meth:`flat`'s leaves):
+        for timing the phases of a first call."""
+        return self._call.lower(*self.flat(*args, **kwargs))
+
+    def __call__(self, *args, **kwargs):
+        return self._call(*self.flat(*args, **kwargs))
 
     def clear_cache(self) -> None:
         """Drop the compiled executable (as ``jax.jit``'s ``clear_cache``)."""
