@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_guide, check_map, check_rank
+from sswjax.stages.buffers import written_once
 from sswjax.stages.filters import edge_pad
 
 __all__ = ["gated_bilateral_mean"]
@@ -64,15 +65,16 @@ def gated_bilateral_mean(disparity: jax.Array, guide: jax.Array, *, radius: int,
     check_rank("guide", guide, 3)
     check_guide(guide, disparity)
     height, width = disparity.shape
-    disparities = edge_pad(disparity, radius)
+    # Written once: XLA CPU fuses the stage before (the side-window median's sorting networks)
+    # into the edge padding below, whose concatenation it runs element by element; with the
+    # map in a buffer first, accurate's whole graph took 15 % less on trainingQ Motorcycle and
+    # Teddy (docs/speed-and-memory.md). An optimization_barrier does not survive XLA CPU's
+    # fusion passes.
+    disparities = edge_pad(written_once(disparity), radius)
     # Channels first, one plane each: a sum over a trailing channel axis ran 15x slower on XLA
     # CPU (as in stages.cost).
     planes = jnp.moveaxis(guide, -1, 0)
     padded = edge_pad(planes, radius)
-    # Materialised once: fused into each of the (2r + 1)^2 windows below, the stage before, the
-    # transpose and the padding made it about 2x slower inside the whole graph (270 ms for two
-    # passes on a trainingQ pair, 120 ms with the barrier).
-    disparities, planes, padded = jax.lax.optimization_barrier((disparities, planes, padded))
     scale = -1.0 / jnp.asarray(colour_scale, jnp.float32)
     total = jnp.zeros_like(disparity)
     weights = jnp.zeros_like(disparity)
