@@ -3,7 +3,10 @@
 The folder's layout (:func:`sswjax.data.layouts.detect_layout`: MiddEval3, KITTI, older
 Middlebury, ETH3D) sets the metrics and their summary (:data:`sswjax.evaluation.runner.SCORINGS`):
 MiddEval3's weighted averages and Table 1, elsewhere means over scenes with bad 3.0 (and D1
-for KITTI). ``--ndisp`` replaces every scene's disparity count.
+for KITTI). ``--ndisp`` replaces every scene's disparity count; ``--ndisp auto`` has the SSW
+methods search the range estimated from each pair, the default where the layout's files carry
+no search range (:attr:`~sswjax.data.layouts.Layout.estimates_range`: ETH3D), and ``--ndisp
+layout`` the layout's own range there too.
 
 Every scene is loaded and checked before any is matched (:mod:`sswjax.cli.scenes`): when some
 cannot be scored the run refuses with one line naming each and why, unless ``--skip-bad``
@@ -51,13 +54,14 @@ def _methods_help() -> str:
 
 
 def _ndisp_option(text: str):
-    """``--ndisp``: a positive count or ``auto``."""
-    if text == "auto":
+    """``--ndisp``: a positive count, ``auto`` or ``layout``."""
+    if text in ("auto", "layout"):
         return text
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a count or 'auto', got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected a count, 'auto' or 'layout', got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
@@ -71,11 +75,13 @@ def add_evaluate_command(commands) -> None:
                         "(default: $SSWJAX_DATA, then ../shared/data/MiddEval3 beside the project)")
     parser.add_argument("--split", default="trainingQ", help="sub-folder of the data (trainingQ)")
     parser.add_argument("--ndisp", type=_ndisp_option,
-                        help="disparities searched in every scene, 0..N-1 (default: calib.txt "
-                             "for MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2); "
-                             "auto: the SSW methods search the range estimated from each pair "
-                             "(as match --ndisp auto; the peers keep the scene's), scored over "
-                             "the scene's range")
+                        help="disparities searched in every scene, 0..N-1; auto: the SSW "
+                             "methods search the range estimated from each pair (as match "
+                             "--ndisp auto; the peers keep the layout's), scored over the "
+                             "layout's range; layout: the layout's range (calib.txt for "
+                             "MiddEval3; elsewhere the smallest multiple of 8 >= max GT + 2). "
+                             "Default: auto for ETH3D, whose files carry no range; elsewhere "
+                             "layout")
     parser.add_argument("--scenes", nargs="+", help="only these scenes")
     parser.add_argument("--methods", default="ssw", help=_methods_help())
     add_parameter_options(parser, "the base")
@@ -178,17 +184,23 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"no method given in --methods {args.methods!r}")
     params, execution = params_from_args(args)
     _note_ignored_plan(args, execution)
-    estimated = args.ndisp == "auto"
+    root = find_data_root(data=args.data)
+    layout = detect_layout(root, split=args.split)
+    searched = args.ndisp if args.ndisp is not None else \
+        "auto" if layout.estimates_range else "layout"
+    estimated = searched == "auto"
     if estimated and args.bucket:
-        raise ValueError("--ndisp auto gives each pair its own range, which --bucket cannot "
-                         "batch: drop one of them")
+        raise ValueError(
+            "--ndisp auto gives each pair its own range, which --bucket cannot batch: drop one "
+            "of them" if args.ndisp else
+            f"{layout.name} pairs search a range estimated from each pair by default, which "
+            "--bucket cannot batch: give --ndisp layout (the layout's range) or --ndisp N")
     buckets = ShapeBuckets() if args.bucket else None
     runners = {name: make_method(name, params=params, buckets=buckets, estimate_range=estimated)
                for name in methods}
-    root = find_data_root(data=args.data)
-    layout = detect_layout(root, split=args.split)
     scoring = SCORINGS[layout.scoring]
-    scene_args = argparse.Namespace(**{**vars(args), "ndisp": None if estimated else args.ndisp})
+    scene_args = argparse.Namespace(
+        **{**vars(args), "ndisp": searched if isinstance(searched, int) else None})
     scenes, problems = checked_scenes(root, layout, scene_args)
     record = None
     if args.output is not None:
@@ -236,7 +248,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                           f"{args.output}; continue with: "
                           f"{resume_command(command_line(args))}") from None
     text = _report(results, scenes, layout, scoring, root=root, problems=problems,
-                   ndisp=args.ndisp)
+                   ndisp=searched)
     print(text)
     if args.output is not None:
         with atomic_output(args.output / "results.md") as tmp:

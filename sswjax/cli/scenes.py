@@ -83,11 +83,16 @@ def skipped_markdown(problems: Problems, root: Path) -> str:
 
 
 def ndisp_line(layout: Layout, ndisp: int | str | None) -> str:
-    """Where the disparity counts of the run come from, one line of ``results.md``."""
+    """Where the disparity counts of the run come from, one line of ``results.md``.
+
+    ``ndisp``: a count, ``"auto"``, or ``"layout"`` / ``None`` (the layout's rule).
+    """
     if ndisp == "auto":
+        default = (f", the default for {layout.name}, whose files carry no search range; "
+                   "--ndisp layout searches the layout's" if layout.estimates_range else "")
         return ("Disparity range searched by the SSW methods: estimated from each pair "
-                f"(--ndisp auto); scored, and searched by the peers, over {layout.name}'s: "
-                f"{layout.ndisp_rule}.")
-    if ndisp is not None:
+                f"(--ndisp auto{default}); scored, and searched by the peers, over "
+                f"{layout.name}'s: {layout.ndisp_rule}.")
+    if isinstance(ndisp, int):
         return f"Disparity range searched: 0..{ndisp - 1} in every scene (--ndisp {ndisp})."
     return f"Disparity range searched ({layout.name}): {layout.ndisp_rule}."

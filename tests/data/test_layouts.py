@@ -256,6 +256,8 @@ def test_eth3d_ndisp_not_below_the_width_is_no_search_range(tmp_path, write_eth3
                        "known disparity to size the search range"):
         load_scenes(root, scenes=["electro_1l"])
     assert "ETH3D writes the width there" in LAYOUTS["ETH3D"].ndisp_rule
+    # so evaluate searches the estimate there by default; every other layout has a range
+    assert [name for name, layout in LAYOUTS.items() if layout.estimates_range] == ["ETH3D"]
 
 
 def test_rule_at_most_the_width_minus_one_in_every_layout(tmp_path):

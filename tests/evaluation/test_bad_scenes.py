@@ -112,7 +112,8 @@ def test_eth3d_as_it_unpacks_ndisp_is_the_width_and_every_scene_is_scored(tmp_pa
     assert [s.ndisp for s in scenes] == [8, 8, 16]  # the GT rule: 3, 5, 13 + 2 -> 8, 8, 16
     assert [s.left.ndim for s in scenes] == [2, 2, 3]
     out = tmp_path / "out"
-    assert main(["evaluate", "--data", root, "--methods", "box", "-o", out]) == 0  # a real match
+    assert main(["evaluate", "--data", root, "--methods", "box", "-o", out, "--ndisp",
+                 "layout"]) == 0  # a real match
     text = capsys.readouterr().out
     assert "Means over 3 ETH3D scenes (no weights; bad-pixel %)" in text
     assert "Disparity range searched (ETH3D): calib.txt's ndisp when below the image width" in text
@@ -127,7 +128,7 @@ def test_eth3d_as_it_unpacks_ndisp_is_the_width_and_every_scene_is_scored(tmp_pa
 
 def test_eth3d_ndisp_rule_with_the_oracle_and_an_explicit_ndisp(tmp_path, oracle, capsys):
     root = write_eth3d_archives(tmp_path)
-    assert main(["evaluate", "--data", root, "--methods", "ssw"]) == 0
+    assert main(["evaluate", "--data", root, "--methods", "ssw", "--ndisp", "layout"]) == 0
     assert oracle == [("ssw", 40, 8), ("ssw", 48, 8), ("ssw", 56, 16)]
     mean = [line for line in capsys.readouterr().out.splitlines() if "**mean**" in line][0]
     assert "| **0.00** | **0.00** | **100.00** | **100.00** |" in mean  # bad 1.0 then bad 0.5
@@ -142,6 +143,35 @@ def test_eth3d_ndisp_rule_with_the_oracle_and_an_explicit_ndisp(tmp_path, oracle
     assert ("2 of 3 scenes cannot be scored: scene delivery_area_1l: ndisp 48 is not below the "
             "image width 40; scene electro_1l: ndisp 48 is not below the image width 48 (in ") in err
     assert "--skip-bad scores the other 1)" in err
+
+
+def test_eth3d_searches_the_estimate_by_default(tmp_path, monkeypatch, capsys):
+    """ETH3D's files carry no range: without --ndisp the SSW methods are made to search the
+    range estimated from each pair; --ndisp layout searches the ground-truth rule, N searches N."""
+    root = write_eth3d_archives(tmp_path)
+    made = []
+
+    def make_method(name, params=None, *, buckets=None, devices=None, estimate_range=False):
+        made.append(estimate_range)
+        return lambda left, right, ndisp: np.full(left.shape[:2], 4.0, np.float32)
+
+    monkeypatch.setattr(sswjax.cli.evaluate, "make_method", make_method)
+    default = ("estimated from each pair (--ndisp auto, the default for ETH3D, whose files carry "
+               "no search range; --ndisp layout searches the layout's); scored, and searched by "
+               "the peers, over ETH3D's: calib.txt's ndisp when below the image width")
+    for argv, estimated, line in (
+            ([], True, default), (["--ndisp", "auto"], True, default),
+            (["--ndisp", "layout"], False, "Disparity range searched (ETH3D): calib.txt's ndisp"),
+            (["--ndisp", "24"], False, "Disparity range searched: 0..23 in every scene")):
+        made.clear()
+        assert main(["evaluate", "--data", root, *argv]) == 0
+        assert made == [estimated] and line in capsys.readouterr().out
+    assert main(["evaluate", "--data", root, "--bucket"]) == 2
+    assert capsys.readouterr().err == (
+        "sswjax: error: ETH3D pairs search a range estimated from each pair by default, which "
+        "--bucket cannot batch: give --ndisp layout (the layout's range) or --ndisp N\n")
+    assert main(["evaluate", "--data", root, "--ndisp", "layout", "--bucket"]) == 0
+    assert made[-1] is False
 
 
 def test_eth3d_scene_without_ground_truth_or_nonoccluded_pixel(tmp_path, oracle, capsys):
@@ -274,8 +304,8 @@ def test_evaluate_scene_refuses_a_ground_truth_without_known_pixel(tmp_path, mid
 
 
 def test_eth3d_with_an_estimated_range(tmp_path, capsys):
-    """``--ndisp auto``: ETH3D's calib.txt gives no range (its ndisp is the width); the SSW
-    methods then search what the pair's coarse pass estimates, a real match."""
+    """ETH3D's calib.txt gives no range (its ndisp is the width): by default the SSW methods
+    search what the pair's coarse pass estimates (--ndisp auto), a real match."""
     images = tmp_path / "ETH3D" / "two_view_training" / "terrace_1s"
     truth = tmp_path / "ETH3D" / "two_view_training_gt" / "terrace_1s"
     images.mkdir(parents=True)
@@ -292,10 +322,9 @@ def test_eth3d_with_an_estimated_range(tmp_path, capsys):
     write_pfm(truth / "disp0GT.pfm", gt)
     iio.imwrite(truth / "mask0nocc.png", np.where(np.isfinite(gt), 255, 0).astype(np.uint8))
     root = tmp_path / "ETH3D"
-    assert main(["--no-cache", "evaluate", "--data", root, "--methods", "ssw", "--ndisp",
-                 "auto"]) == 0
+    assert main(["--no-cache", "evaluate", "--data", root, "--methods", "ssw"]) == 0
     out = capsys.readouterr().out
-    assert "estimated from each pair (--ndisp auto)" in out
+    assert "estimated from each pair (--ndisp auto, the default for ETH3D" in out
     row = [line for line in out.splitlines() if "| terrace_1s |" in line][0]
     assert float(row.split("|")[2]) < 5.0  # bad 2.0 nonocc
     assert main(["evaluate", "--data", root, "--ndisp", "auto", "--bucket"]) == 2

@@ -189,7 +189,8 @@ def test_evaluate_real_shared_data_with_sgbm(tmp_path, capsys):
 def test_evaluate_eth3d_folder(tmp_path, oracle, capsys, write_eth3d):
     root = write_eth3d(tmp_path, shifts=(3, 5), ndisps=(24, None))
     out = tmp_path / "out"
-    assert main(["evaluate", "--data", str(root), "--methods", "ssw", "-o", str(out)]) == 0
+    assert main(["evaluate", "--data", str(root), "--methods", "ssw", "-o", str(out),
+                 "--ndisp", "layout"]) == 0
     assert oracle == [("ssw", 24), ("ssw", 8)]  # calib.txt's ndisp, else the rule
     assert "Means over 2 ETH3D scenes (no weights; bad-pixel %)" in capsys.readouterr().out
     rows = _csv(out / "metrics.csv")

@@ -79,6 +79,10 @@ class Layout(abc.ABC):
         Names of layouts that also match this one's folders but are not meant when it matches.
     ndisp_rule : str
         Where a scene's disparity count comes from, in one line for reports.
+    estimates_range : bool
+        Whether the layout's files carry no search range, so that ``sswjax evaluate`` has the
+        SSW methods search the range estimated from each pair by default (``--ndisp auto``;
+        ``--ndisp layout`` searches :attr:`ndisp_rule`'s, which scores either way).
     """
 
     name: str
@@ -88,6 +92,7 @@ class Layout(abc.ABC):
     supersedes: tuple[str, ...] = ()
     ndisp_rule: str = ("the smallest multiple of 8 >= the largest known disparity + 2, at most "
                        "the image width - 1")
+    estimates_range: bool = False
 
     @property
     @abc.abstractmethod

@@ -19,6 +19,11 @@ or none, gives way to the ground-truth rule
 (:func:`~sswjax.data.layouts.base.ndisp_from_ground_truth`: the smallest multiple of 8 >= the
 largest known disparity + 2), at most the image width - 1. An explicit ``ndisp`` replaces both.
 
+That rule sizes the range from the answer, so it scores a scene but is not what a method
+should search: :attr:`Eth3dLayout.estimates_range` is true, and ``sswjax evaluate`` has the SSW
+methods search the range :func:`sswjax.api.auto_range.estimate_range` finds in each pair unless
+``--ndisp layout`` (this rule) or ``--ndisp N`` is given (``docs/data-layouts.md`` says why).
+
 Its scene folders look like MiddEval3's, which it therefore supersedes in detection.
 """
 
@@ -86,6 +91,7 @@ class Eth3dLayout(Layout):
     ndisp_rule = ("calib.txt's ndisp when below the image width; ETH3D writes the width there, "
                   "which is no search range, so then the smallest multiple of 8 >= the largest "
                   "known disparity + 2, at most the image width - 1")
+    estimates_range = True
 
     @property
     def files(self) -> str:
