@@ -16,10 +16,11 @@ Every pair of MiddEval3 trainingQ, KITTI 2012 and Middlebury 2001 is matched who
 For each, the share of pixels whose disparity differs from the whole image's at all and by
 more than 0.5 px, and bad 2.0 (% of the known pixels, non-occluded where a mask exists) of
 both. Targets: under 0.5 % of the pixels differ, bad 2.0 moves by less than 0.05 points. A
-guard's plan of the whole image is the whole image's map (nothing to match again). Each data
-set runs in a fresh process (each pair is a shape of its own). ``--pairs N``: the first N
-pairs of each set (by name) only; ``--overlap N``: every plan's collar (default 32). Writes
-``benchmarks/results/tiles.{md,csv}`` (``tiles_overlapN`` with another collar).
+guard's plan of the whole image is the whole image's map (nothing to match again). And the
+cost: each match runs twice and the second call is timed (compiled), the ratio tiled / whole
+of a pair. Each data set runs in a fresh process (each pair is a shape of its own).
+``--pairs N``: the first N pairs of each set (by name) only; ``--overlap N``: every plan's
+collar (default: the plan's default). Writes ``benchmarks/results/tiles_overlapN.{md,csv}``.
 
     python benchmarks/tiles.py [--data ../shared/data] [--sets MiddEval3 KITTI2012 Middlebury2001]
                                [--pairs N] [--overlap N]
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -50,9 +52,9 @@ from _report import write_report
 SETS = ("MiddEval3", "KITTI2012", "Middlebury2001")
 BUDGET, WORKERS = 2e9, 2
 KEYS = ("set", "scene", "tiling", "plan", "differ", "differ_05", "bad2_whole", "bad2_tiled",
-        "seconds_whole", "seconds_tiled")
-"""The CSV's columns (the seconds are first calls: compilation included; the cost of tiling is
-timed by ``benchmarks/scale.py``)."""
+        "seconds_whole", "seconds_tiled", "load_average")
+"""The CSV's columns (the seconds are second calls, compiled; a guard's whole image is not
+matched again: its tiled seconds are the whole's; the 1-minute load average after the pair)."""
 
 
 def guard_plan(scene, params, overlap: int) -> sswjax.ExecutionPlan:
@@ -67,6 +69,14 @@ def guard_plan(scene, params, overlap: int) -> sswjax.ExecutionPlan:
 def _size(plan) -> int:
     """How small a plan's pieces are (rows of strips, or a tile's side; the whole: inf)."""
     return plan.tile or plan.strip_rows or 10**9
+
+
+def timed(match) -> tuple[np.ndarray, float]:
+    """``match()``'s map and the seconds of its second call (the first compiles)."""
+    match()
+    start = time.perf_counter()
+    disparity = match()
+    return disparity, time.perf_counter() - start
 
 
 def bad2(disparity, scene) -> float:
@@ -87,40 +97,42 @@ def measure_set(data: Path, name: str, smallest: dict | None, pairs: int | None,
         return [dict(guard_plan(s, params, overlap)._asdict(), engine=None) for s in scenes]
     rows = []
     for scene in scenes:
-        start = time.perf_counter()
-        whole = sswjax.match(scene.left, scene.right, scene.ndisp, params=params)
-        seconds_whole = time.perf_counter() - start
+        whole, seconds_whole = timed(lambda: sswjax.match(scene.left, scene.right,
+                                                          scene.ndisp, params=params))
         plans = {"guard": guard_plan(scene, params, overlap),
                  "smallest": sswjax.ExecutionPlan(**smallest),
                  "tile256": sswjax.ExecutionPlan(tile=256, strip_overlap=overlap)}
         for tiling, plan in plans.items():
-            start = time.perf_counter()
-            tiled = whole if not (plan.tile or plan.strip_rows) else sswjax.match(
-                scene.left, scene.right, scene.ndisp, params=params, plan=plan,
-                check_memory=False)
-            seconds = time.perf_counter() - start
+            tiled, seconds = (whole, seconds_whole) if not (plan.tile or plan.strip_rows) \
+                else timed(lambda: sswjax.match(scene.left, scene.right, scene.ndisp,
+                                                params=params, plan=plan, check_memory=False))
             delta = np.abs(tiled - whole)
             rows.append({"set": name, "scene": scene.name, "tiling": tiling,
                          "plan": tiling_words(plan), "differ": 100 * float(np.mean(delta > 0)),
                          "differ_05": 100 * float(np.mean(delta > 0.5)),
                          "bad2_whole": bad2(whole, scene), "bad2_tiled": bad2(tiled, scene),
-                         "seconds_whole": seconds_whole, "seconds_tiled": seconds})
+                         "seconds_whole": seconds_whole, "seconds_tiled": seconds,
+                         "load_average": os.getloadavg()[0]})
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     return rows
 
 
 def table(rows: list[dict], smallest: str, overlap: int) -> str:
+    loads = [r["load_average"] for r in rows]
     lines = [f"# Tiles against the whole image (`accurate`, collar {overlap})", "",
-             (f"`python benchmarks/tiles.py`. guard: the memory guard's choice on a "
+             (f"`python benchmarks/tiles.py --overlap {overlap}`. guard: the memory guard's choice on a "
               f"{BUDGET / 1e9:g} GB budget shared by {WORKERS} workers (one process holds "
               f"every pair whole in {BUDGET / 1e9:g} GB: no seam); smallest: {smallest}, the "
               "smallest choice of the guard over all pairs, on every pair; tile256: `--tile "
               "256`. differ: % of pixels whose disparity changed at all (max over the pairs in "
               "brackets), > 0.5 px: by more than half a pixel; bad 2.0: mean over the pairs, "
-              "and the largest change of a pair. Targets: differ < 0.5 %, |Δ bad 2.0| < 0.05."),
+              "and the largest change of a pair. Targets: differ < 0.5 %, |Δ bad 2.0| < 0.05. "
+              "time: tiled / whole seconds of the second (compiled) call, mean over the pairs "
+              f"(the largest in brackets); 1-minute load average {min(loads):.1f} to "
+              f"{max(loads):.1f} on {os.cpu_count()} cores."),
              "", ("| set | tiling | plans | pairs | differ % | > 0.5 px % | bad 2.0 whole | "
-                  "bad 2.0 tiled | max abs Δ bad 2.0 | met |"),
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---|"]
+                  "bad 2.0 tiled | max abs Δ bad 2.0 | met | time tiled / whole |"),
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---|---:|"]
     for name in SETS:
         for tiling in ("guard", "smallest", "tile256"):
             chosen = [r for r in rows if r["set"] == name and r["tiling"] == tiling]
@@ -129,6 +141,7 @@ def table(rows: list[dict], smallest: str, overlap: int) -> str:
             differ = [r["differ"] for r in chosen]
             over = [r["differ_05"] for r in chosen]
             deltas = [abs(r["bad2_tiled"] - r["bad2_whole"]) for r in chosen]
+            ratios = [r["seconds_tiled"] / r["seconds_whole"] for r in chosen]
             plans = sorted({r["plan"] for r in chosen})
             shown = plans[0] if len(plans) == 1 else f"{len(plans)} plans"
             met = "yes" if max(differ) < 0.5 and max(deltas) < 0.05 else \
@@ -138,7 +151,7 @@ def table(rows: list[dict], smallest: str, overlap: int) -> str:
                 f"({max(differ):.2f}) | {np.mean(over):.3f} ({max(over):.2f}) | "
                 f"{np.mean([r['bad2_whole'] for r in chosen]):.3f} | "
                 f"{np.mean([r['bad2_tiled'] for r in chosen]):.3f} | {max(deltas):.3f} | "
-                f"{met} |")
+                f"{met} | {np.mean(ratios):.2f} ({max(ratios):.2f}) |")
     return "\n".join(lines)
 
 
@@ -147,8 +160,8 @@ def main(argv=None) -> int:
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
     parser.add_argument("--sets", nargs="+", default=list(SETS))
     parser.add_argument("--pairs", type=int, help="the first N pairs of each set only")
-    parser.add_argument("--overlap", type=int, default=32,
-                        help="the collar (--strip-overlap; default 32); the results of another "
+    parser.add_argument("--overlap", type=int, default=sswjax.ExecutionPlan().strip_overlap,
+                        help="the collar (--strip-overlap; default: the plan's); the results "
                              "are written to tiles_overlapN.{md,csv}")
     parser.add_argument("--one", help=argparse.SUPPRESS)        # the child: one set
     parser.add_argument("--smallest", help=argparse.SUPPRESS)   # its smallest plan (JSON)
@@ -179,7 +192,7 @@ def main(argv=None) -> int:
               "tile": smallest.tile}
     rows = [row for name in args.sets
             for row in child(name, "--smallest", json.dumps(fields), *subset)]
-    stem = "tiles" if args.overlap == 32 else f"tiles_overlap{args.overlap}"
+    stem = f"tiles_overlap{args.overlap}"
     write_report(args.results, stem, table(rows, tiling_words(smallest), args.overlap), rows,
                  KEYS)
     return 0
