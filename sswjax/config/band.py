@@ -24,6 +24,10 @@ class DisparityBand(Part):
     # Band volumes are unrolled plane by plane (the cost's gathers, the fold): at most 32.
     width: int = option(7, static=True, low=2, high=32, help="disparities each pixel searches, "
                         "centred on its estimate (K)")
+    spread_radius: int = option(0, static=True, low=0, high=8, help="r > 0: centre each "
+                                "band on the range of the estimates in the pixel's "
+                                "(2r + 1)^2 window where that range fits in the band "
+                                "(both sides of a depth edge); 0: on the pixel's own estimate")
     aggregate: bool = option(True, static=True, help="aggregate the band's cost with the "
                              "aggregation stage, plane by plane (each plane follows the "
                              "estimate); False: the paths read the matching cost")

@@ -39,7 +39,8 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
     # Written once: each reader of the band (the cost's gathers, the paths' alignment, both
     # right views) would otherwise recompute the estimate (the coarse map's upsampling) for
     # every plane of the band.
-    starts = written_once(band_starts(estimate, width=width, limit=limit))
+    starts = written_once(band_starts(estimate, width=width, limit=limit,
+                                       spread_radius=band.spread_radius))
     with scope(Stage.COST):
         cost = params.cost.band(scene.features, starts, width)
     if band.aggregate:

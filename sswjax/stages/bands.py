@@ -19,18 +19,29 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+from jax import lax
 
 from sswjax._checks import check_integer, check_positive_int, check_rank, check_same_shape
 from sswjax.stages.cost import MatchingFeatures, matching_cost_at
+from sswjax.stages.filters import edge_pad
 from sswjax.stages.quantisation import dequantise
 from sswjax.stages.selection import Winners, fold_winners, no_winners
 
 __all__ = ["align_band", "band_cost", "band_deltas", "band_right_view", "band_starts", "band_winners"]
 
 
-def band_starts(estimate: jax.Array, *, width: int, limit) -> jax.Array:
+def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 0
+                ) -> jax.Array:
     """First disparity of each pixel's band: ``width`` disparities centred on the rounded
     estimate, moved inside ``[0, limit)`` where they would leave it.
+
+    With ``spread_radius = r > 0`` the band is centred instead on the middle of the rounded
+    estimates' range ``[lo, hi]`` over the ``(2r + 1)^2`` window of the pixel wherever that
+    range fits in the band (``hi - lo < width``): near a depth edge of a coarse map the
+    estimate can sit on either side of the edge, and a band holding both sides lets the
+    full-resolution pass choose (the tSGM's per-pixel ranges from the neighbourhood's minimum
+    and maximum, Rothermel et al. 2012, padded to a fixed width). Where the range is wider,
+    the band stays on the pixel's own estimate.
 
     Parameters
     ----------
@@ -40,6 +51,8 @@ def band_starts(estimate: jax.Array, *, width: int, limit) -> jax.Array:
         ``K``, the band's disparities (odd bands are centred; even ones have one more above).
     limit : int or int32 scalar
         The search range ``0 .. limit - 1``; with ``limit < width`` every band starts at 0.
+    spread_radius : int >= 0
+        ``r``; 0 centres every band on its own estimate. Borders are edge-replicated.
 
     Returns
     -------
@@ -50,10 +63,26 @@ def band_starts(estimate: jax.Array, *, width: int, limit) -> jax.Array:
     >>> import jax.numpy as jnp
     >>> band_starts(jnp.array([[0.2, 4.6, 9.0]]), width=3, limit=10).tolist()
     [[0, 4, 7]]
+    >>> edge = jnp.array([[2.0, 2.0, 6.0, 6.0]])       # a step of 4 under a band of 7
+    >>> band_starts(edge, width=7, limit=20).tolist(), band_starts(
+    ...     edge, width=7, limit=20, spread_radius=1).tolist()
+    ([[0, 0, 3, 3]], [[0, 1, 1, 3]])
     """
     check_rank("estimate", estimate, 2)
     check_positive_int("width", width)
-    start = jnp.round(estimate).astype(jnp.int32) - (width - 1) // 2
+    check_positive_int("spread_radius", spread_radius, minimum=0)
+    rounded = jnp.round(estimate).astype(jnp.int32)
+    start = rounded - (width - 1) // 2
+    if spread_radius > 0:
+        window = (2 * spread_radius + 1,) * 2
+        padded = edge_pad(rounded, spread_radius)
+        low = lax.reduce_window(padded, jnp.iinfo(jnp.int32).max, lax.min, window, (1, 1),
+                                "VALID")
+        high = lax.reduce_window(padded, jnp.iinfo(jnp.int32).min, lax.max, window, (1, 1),
+                                 "VALID")
+        # The range [low, high] centred in the band: (width - 1 - (high - low)) // 2 to spare
+        # below it, the rest above.
+        start = jnp.where(high - low < width, low - (width - 1 - (high - low)) // 2, start)
     return jnp.maximum(jnp.minimum(start, limit - width), 0).astype(jnp.int32)
 
 

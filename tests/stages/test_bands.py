@@ -22,6 +22,27 @@ def test_band_starts_centre_and_clip():
     assert np.asarray(band_starts(jnp.asarray(estimate), width=12, limit=10)).max() == 0
 
 
+def test_band_starts_around_the_spread_by_loops():
+    rng = np.random.default_rng(4)
+    estimate = (rng.random((7, 9)) * 12).astype(np.float32)
+    estimate[:, 5:] += 20.0  # an edge wider than any band here
+    width, limit, r = 7, 40, 1
+    ours = np.asarray(band_starts(jnp.asarray(estimate), width=width, limit=limit,
+                                  spread_radius=r))
+    rounded = np.round(estimate).astype(int)
+    for y in range(7):
+        for x in range(9):
+            window = [rounded[min(max(y + dy, 0), 6), min(max(x + dx, 0), 8)]
+                      for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+            low, high = min(window), max(window)
+            if high - low < width:
+                start = low - (width - 1 - (high - low)) // 2
+                assert start <= low and high <= start + width - 1  # the band holds the range
+            else:
+                start = rounded[y, x] - (width - 1) // 2
+            assert ours[y, x] == min(max(start, 0), limit - width)
+
+
 def test_band_cost_is_the_volume_read_at_the_band():
     rng = np.random.default_rng(0)
     left = rng.random((6, 20, 3)).astype(np.float32)
