@@ -12,11 +12,12 @@ and Dask's overhead, 1 worker against the pinned loop (goal <= 10 %).
 
 Tiles: a pair of MiddEval3's full resolution (Motorcycle's quarter-resolution images resized
 to 1988 x 2964, ndisp 280) and a KITTI pair (its own full resolution, 1226 x 370, ndisp 128),
-matched whole and in the strips and tiles named below, each the second of two calls in one
-process (compiled): the time ratio tiled / whole. Writes ``benchmarks/results/scale.md``.
+matched whole and in the strips and tiles named below, with each collar of ``--overlaps``
+(default: the plan's), each the second of two calls in one process (compiled): the time ratio
+tiled / whole. Writes ``benchmarks/results/scale.md``.
 
     python benchmarks/scale.py [--data ../shared/data] [--skip-folders] [--skip-tiles]
-                               [--report-only]
+                               [--overlaps N ...] [--report-only]
 """
 
 from __future__ import annotations
@@ -25,12 +26,14 @@ import argparse
 import json
 import os
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import sswjax
 from sswjax.cluster.pairs import folder_pairs
 from sswjax.cluster.workers import worker_environment
 
@@ -103,28 +106,35 @@ def _one_of_each_shape(data: Path, scratch: Path) -> tuple[Path, Path]:
     return warm
 
 
-def measure_folders(data: Path) -> list[dict]:
+def measure_folders(data: Path, rounds: int = 1) -> list[dict]:
+    """Each run of :data:`FOLDER_RUNS`, ``rounds`` times, in turn (the order reversed every
+    other round)."""
     rows = []
     kitti = data / "KITTI2012/training/image_0", data / "KITTI2012/training/image_1"
     count = len(folder_pairs(*kitti))
     with tempfile.TemporaryDirectory() as scratch:
         warm = _one_of_each_shape(data, Path(scratch))
-        for name, (options, environment) in FOLDER_RUNS.items():
-            folder_run(warm, Path(scratch) / f"warm-{len(rows)}", options, environment)
-            command, loop = folder_run(kitti, Path(scratch) / f"run-{len(rows)}", options,
-                                       environment)
-            rows.append({"what": name, "command_s": command, "loop_s": loop,
-                         "pairs": count, "pairs_per_minute": count * 60 / loop,
-                         "load_average": os.getloadavg()[0]})
-            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+        for round_ in range(rounds):
+            names = list(FOLDER_RUNS) if round_ % 2 == 0 else list(FOLDER_RUNS)[::-1]
+            for name in names:
+                options, environment = FOLDER_RUNS[name]
+                folder_run(warm, Path(scratch) / f"warm-{len(rows)}", options, environment)
+                load = os.getloadavg()[0]
+                command, loop = folder_run(kitti, Path(scratch) / f"run-{len(rows)}", options,
+                                           environment)
+                rows.append({"what": name, "round": round_ + 1, "command_s": command,
+                             "loop_s": loop, "pairs": count,
+                             "pairs_per_minute": count * 60 / loop, "load_before": load,
+                             "load_average": os.getloadavg()[0]})
+                print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     return rows
 
 
-def measure_tiles(data: Path) -> list[dict]:
+def measure_tiles(data: Path, overlaps: list[int]) -> list[dict]:
     rows = []
     for pair, plans in TILINGS.items():
         times = {}
-        for plan in [{}] + plans:
+        for plan in [{}] + [dict(p, strip_overlap=c) for c in overlaps for p in plans]:
             run = subprocess.run([sys.executable, "-c", TILE_CHILD, str(data), pair,
                                   json.dumps(plan)], capture_output=True, text=True, check=False)
             if run.returncode != 0:
@@ -133,7 +143,8 @@ def measure_tiles(data: Path) -> list[dict]:
             whole = times["{}"]
             rows.append({"pair": pair, "plan": json.dumps(plan) if plan else "whole",
                          "seconds": times[json.dumps(plan)],
-                         "ratio": times[json.dumps(plan)] / whole})
+                         "ratio": times[json.dumps(plan)] / whole,
+                         "load_average": os.getloadavg()[0]})
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     return rows
 
@@ -141,48 +152,64 @@ def measure_tiles(data: Path) -> list[dict]:
 def table(folders: list[dict], tiles: list[dict]) -> str:
     lines = ["# Scaling on this machine (2 cores)", "", "`python benchmarks/scale.py`.", ""]
     if folders:
-        by = {row["what"]: row for row in folders}
+        by = {name: statistics.median(r["loop_s"] for r in folders if r["what"] == name)
+              for name in FOLDER_RUNS}
+        rounds = max(r.get("round", 1) for r in folders)
         lines += ["## 30 KITTI 2012 pairs, `accurate`, ndisp 128", "",
-                  "| run | command s | loop s | pairs / min | load average (1 min) after |",
-                  "|---|---:|---:|---:|---:|"]
-        lines += [f"| {r['what']} | {r['command_s']:.1f} | {r['loop_s']:.1f} | "
-                  f"{r['pairs_per_minute']:.1f} | {r['load_average']:.1f} |" for r in folders]
-        one, two = by["--workers 1"]["loop_s"], by["--workers 2"]["loop_s"]
-        pinned, loop = by["in-process loop, XLA on 1 thread"]["loop_s"], by["in-process loop"]["loop_s"]
+                  (f"{rounds} round(s), the runs in turn (every other round in reverse); the "
+                   "ratios are of the median loop seconds."), "",
+                  "| run | round | command s | loop s | pairs / min | load (1 min) before / after |",
+                  "|---|---:|---:|---:|---:|---|"]
+        lines += [f"| {r['what']} | {r.get('round', 1)} | {r['command_s']:.1f} | "
+                  f"{r['loop_s']:.1f} | {r['pairs_per_minute']:.1f} | "
+                  f"{r.get('load_before', float('nan')):.2f} / {r['load_average']:.2f} |"
+                  for r in sorted(folders, key=lambda r: list(FOLDER_RUNS).index(r["what"]))]
+        one, two = by["--workers 1"], by["--workers 2"]
+        pinned, loop = by["in-process loop, XLA on 1 thread"], by["in-process loop"]
         lines += ["", (f"- 2 workers over 1: **{one / two:.2f}x** the throughput (goal >= 1.7); "
                        f"over the in-process loop: {loop / two:.2f}x."),
                   (f"- Dask's overhead, 1 worker against the loop with XLA on one thread: "
                    f"**{100 * (one / pinned - 1):+.1f} %** (goal <= 10 %); against the loop as "
                    f"it is: {100 * (one / loop - 1):+.1f} %."), ""]
-        load = max(r["load_average"] for r in folders)
+        load = max(r.get("load_before", r["load_average"]) for r in folders)
         if load > (os.cpu_count() or 1):
-            lines += [(f"Measured while other jobs shared the machine (load average up to "
-                       f"{load:.1f} on {os.cpu_count()} cores): the workers competed with them "
-                       "for the cores, so these ratios are not the machine's own."), ""]
+            lines += [(f"The 1-minute load average before a run reached {load:.1f} on "
+                       f"{os.cpu_count()} cores. It lags by about a minute, so it counts the "
+                       "previous run's own workers as well as any other job: where the rounds "
+                       "disagree, other jobs shared the machine."), ""]
     if tiles:
-        lines += ["## The cost of tiles (`accurate`, collar 32, compiled)", "",
-                  "| pair | plan | s | tiled / whole |", "|---|---|---:|---:|"]
-        lines += [f"| {r['pair']} | {r['plan']} | {r['seconds']:.1f} | {r['ratio']:.2f} |"
-                  for r in tiles]
+        lines += ["## The cost of tiles (`accurate`, compiled)", "",
+                  "| pair | plan | s | tiled / whole | load average (1 min) after |",
+                  "|---|---|---:|---:|---:|"]
+        lines += [f"| {r['pair']} | {r['plan']} | {r['seconds']:.1f} | {r['ratio']:.2f} | "
+                  f"{r.get('load_average', float('nan')):.1f} |" for r in tiles]
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
-    parser.add_argument("--skip-folders", action="store_true")
-    parser.add_argument("--skip-tiles", action="store_true")
+    parser.add_argument("--skip-folders", action="store_true",
+                        help="keep the folders' figures of the last run (scale.json)")
+    parser.add_argument("--skip-tiles", action="store_true",
+                        help="keep the tiles' figures of the last run (scale.json)")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="how many times each folder run is timed, in turn")
+    parser.add_argument("--overlaps", type=int, nargs="+",
+                        default=[sswjax.ExecutionPlan().strip_overlap],
+                        help="the collars the tiles are timed with (default: the plan's)")
     parser.add_argument("--results", type=Path, default=Path(__file__).parent / "results")
     parser.add_argument("--report-only", action="store_true",
                         help="write scale.md again from scale.json, measuring nothing")
     args = parser.parse_args(argv)
     data = args.data.resolve()
-    if args.report_only:
-        saved = json.loads((args.results / "scale.json").read_text())
-        folders, tiles = saved["folders"], saved["tiles"]
-    else:
-        folders = [] if args.skip_folders else measure_folders(data)
-        tiles = [] if args.skip_tiles else measure_tiles(data)
+    saved_path = args.results / "scale.json"     # a part not measured is kept from the last run
+    saved = json.loads(saved_path.read_text()) if saved_path.exists() else \
+        {"folders": [], "tiles": []}
+    skip_folders = args.skip_folders or args.report_only
+    skip_tiles = args.skip_tiles or args.report_only
+    folders = saved["folders"] if skip_folders else measure_folders(data, args.rounds)
+    tiles = saved["tiles"] if skip_tiles else measure_tiles(data, args.overlaps)
     text = table(folders, tiles)
     print(text)
     args.results.mkdir(parents=True, exist_ok=True)
