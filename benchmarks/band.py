@@ -101,7 +101,8 @@ def main(argv=None) -> int:
             print(name, set_name, file=sys.stderr, flush=True)
         row["x SGBM"] = time_ratio(run, timed) if timed else float("nan")
         rows.append(row)
-    write_report(args.output, "band", _table(rows), rows, list(rows[0]))
+        # after every configuration: a run stopped halfway keeps what it measured
+        write_report(args.output, "band", _table(rows), rows, list(rows[0]))
     if len(rows) > 1:
         write_held_out(args.output, rows)
     return 0
