@@ -26,7 +26,7 @@ def written_once(x: jax.Array) -> jax.Array:
 
     Parameters
     ----------
-    x : any shape, integer or floating dtype
+    x : any shape, bool, integer or floating dtype
 
     Returns
     -------
@@ -37,7 +37,13 @@ def written_once(x: jax.Array) -> jax.Array:
     >>> import jax.numpy as jnp
     >>> written_once(jnp.array([3, -2**31, 5], jnp.int32)).tolist()
     [3, -2147483648, 5]
+    >>> written_once(jnp.array([True, False])).tolist()
+    [True, False]
     """
-    lowest = (jnp.iinfo(x.dtype).min if jnp.issubdtype(x.dtype, jnp.integer)
-              else -jnp.inf)
+    if x.dtype == jnp.bool_:
+        lowest = False
+    elif jnp.issubdtype(x.dtype, jnp.integer):
+        lowest = jnp.iinfo(x.dtype).min
+    else:
+        lowest = -jnp.inf
     return jnp.max(jnp.stack([x, jnp.full_like(x, lowest)]), axis=0)
