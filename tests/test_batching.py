@@ -76,9 +76,9 @@ def _run_scenes(devices):
     pairs, ndisps = _scenes()
     calls, inner = [], batch._batched
 
-    def spy(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
+    def spy(lefts, rights, valid_ndisps, valid_shapes, params, *, ndisp, chunk):
         calls.append([lefts.shape[0], lefts.sharding.shard_shape(lefts.shape)[0]])
-        return inner(lefts, rights, valid_ndisps, params, ndisp=ndisp, chunk=chunk)
+        return inner(lefts, rights, valid_ndisps, valid_shapes, params, ndisp=ndisp, chunk=chunk)
 
     batch._batched = spy
     try:

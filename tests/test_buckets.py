@@ -69,3 +69,20 @@ def test_second_process_reuses_the_compilation_cache(tmp_path):
     assert any("ssw_disparity" in name for name in entries)
     subprocess.run([sys.executable, "-c", script], env=env, check=True)
     assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == entries  # reused, not re-added
+
+
+@pytest.mark.parametrize("name", ["accurate", "balanced"])
+def test_a_padded_pair_is_matched_as_at_its_own_size(name):
+    # Padding replicates the last row and column of both views; matched as such, the padded
+    # columns (left edge copies against the real right image) pulled a corner of the map off
+    # along the semi-global paths. The padding now holds no evidence and every filter reads
+    # the edge there, as it does at the pair's own size.
+    import skimage.data
+    left, right, _ = skimage.data.stereo_motorcycle()
+    left, right = (image[250:250 + 3 * 75:3, 100:100 + 3 * 203:3] for image in (left, right))
+    params = sswjax.preset(name)
+    own = sswjax.match(left, right, 24, params=params)
+    padded = sswjax.match(left, right, 24, params=params,
+                          buckets=ShapeBuckets(size_step=64, ndisp_step=32))
+    assert bucket_shape(75, 203, 24, ShapeBuckets(size_step=64, ndisp_step=32)) == (128, 256, 32)
+    assert np.mean(np.abs(own - padded) > 0.5) < 0.002

@@ -21,7 +21,7 @@ from sswjax.runtime.memory import (
     plan_for_memory,
     worker_peak_bytes,
 )
-from sswjax.runtime.plan import check_plan
+from sswjax.runtime.plan import bind_graph, check_plan, graph_call
 from sswjax.runtime.tiles import Tiling, in_tiles, tile_windows, window_shape
 
 CHEAP = sswjax.Params().replace(segments=None, aggregation={"kind": "box", "radius": 1})
@@ -75,6 +75,27 @@ def test_strips_are_the_one_column_tiling_as_before(rows, overlap):
     expected = _old_strips(run, image, image, rows=rows, overlap=overlap)
     np.testing.assert_array_equal(in_tiles(run, image, image, Tiling(rows, 0, overlap, 6)),
                                   expected)
+
+
+def test_each_window_of_a_padded_pair_is_told_how_much_of_it_is_the_pair():
+    # A bucket pads the pair to 128 x 128; tiles of that padded image each run the graph with
+    # the part of the pair inside them (traced), so their padding is matched as the edge.
+    image = np.zeros((70, 100, 1), np.float32)
+    plan = ExecutionPlan(buckets=sswjax.ShapeBuckets(size_step=64, ndisp_step=8))
+    left, _, call = graph_call(image, image, 8, plan)
+    assert left.shape[:2] == (128, 128) and call["valid_shape"] == (70, 100)
+    windows = tile_windows(128, 128, Tiling(48, 48, 8, 8))
+    assert len(windows) > 1
+    for window in windows:
+        bound = bind_graph(lambda *a, **k: k["valid_shape"], CHEAP, call, window)
+        assert tuple(np.asarray(bound()).tolist()) == (
+            min(max(70 - window.top, 0), window.height),
+            min(max(100 - window.left, 0), window.width))
+    # Some windows reach into the padding, some lie within the pair.
+    assert any(w.top + w.height > 70 or w.left + w.width > 100 for w in windows)
+    assert any(w.top + w.height <= 70 and w.left + w.width <= 100 for w in windows)
+    whole = bind_graph(lambda *a, **k: k["valid_shape"], CHEAP, call)
+    assert tuple(np.asarray(whole()).tolist()) == (70, 100)
 
 
 def test_plans_with_tiles_are_checked():

@@ -34,31 +34,33 @@ from sswjax.runtime.executables import bounded
 __all__ = ["iter_match_scenes", "match_batch", "match_scenes"]
 
 
-def _vmapped(lefts, rights, valid_ndisps, params, *, ndisp, chunk):
+def _vmapped(lefts, rights, valid_ndisps, valid_shapes, params, *, ndisp, chunk):
     """:func:`~sswjax.graph.ssw_disparity` of each pair of a batch (``jax.vmap``)."""
-    def one(left, right, valid_ndisp):
+    def one(left, right, valid_ndisp, valid_shape):
         return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                             chunk=chunk)
+                             chunk=chunk, valid_shape=valid_shape)
 
-    return jax.vmap(one)(lefts, rights, valid_ndisps)
+    return jax.vmap(one)(lefts, rights, valid_ndisps, valid_shapes)
 
 
 _batched = bounded(_vmapped, static_argnames=("ndisp", "chunk"))
 """The batched graph, its executables bounded (:mod:`sswjax.runtime.executables`)."""
 
 
-def _run_sharded(lefts, rights, valid_ndisps, params: Params, ndisp: int, mesh: Mesh,
+def _run_sharded(lefts, rights, valid, params: Params, ndisp: int, mesh: Mesh,
                  chunk: int = DEFAULT_CHUNK) -> np.ndarray:
     """``ssw_disparity`` of a batch split over ``mesh`` (padded to a multiple of its size).
 
-    ``valid_ndisps``: int32 ``(B,)`` traced search ranges, or ``None`` for ``ndisp`` each.
+    ``valid``: ``(valid_ndisps, valid_shapes)``, int32 ``(B,)`` traced search ranges and
+    int32 ``(B, 2)`` sizes of the pairs within their padding, or ``None`` for ``ndisp`` and
+    the whole images.
     """
     size = len(lefts)
-    arrays = (lefts, rights) + (() if valid_ndisps is None else (valid_ndisps,))
+    arrays = (lefts, rights) + (() if valid is None else tuple(valid))
     sharding = NamedSharding(mesh, PartitionSpec(BATCH_AXIS))
     sharded = jax.device_put(pad_batch(arrays, mesh.size), sharding)
-    if valid_ndisps is None:
-        sharded += (None,)
+    if valid is None:
+        sharded += (None, None)
     return np.asarray(_batched(*sharded, params, ndisp=ndisp, chunk=chunk))[:size]
 
 
@@ -109,8 +111,8 @@ def iter_match_scenes(
 
     Pairs are grouped by their padded shape (:func:`~sswjax.runtime.buckets.bucket_shape` and the
     channel count), groups in order of their first pair; each pair is edge-padded at the bottom
-    and right as ``sswjax.match(..., buckets=buckets)`` pads it, and its own ``ndisp`` is passed
-    as the traced ``valid_ndisp``. A group runs in steps of ``len(devices)`` pairs, one per
+    and right as ``sswjax.match(..., buckets=buckets)`` pads it, and its own ``ndisp`` and size
+    are passed as the traced ``valid_ndisp`` and ``valid_shape``. A group runs in steps of ``len(devices)`` pairs, one per
     device (``jax.vmap`` over a batch sharded on :func:`device_mesh`); a short last step is
     filled with copies of its last pair. Every input is checked before the first step.
 
@@ -156,7 +158,8 @@ def iter_match_scenes(
                 sizes.append(left.shape[:2])
                 views.append(list(pad_to_bucket(left, right, height, width)))
             left_batch, right_batch = (np.stack(side) for side in zip(*views))
-            valid = np.array([ndisps[index] for index in step], np.int32)
+            valid = (np.array([ndisps[index] for index in step], np.int32),
+                     np.array(sizes, np.int32))
             disparities = _run_sharded(left_batch, right_batch, valid, params, ndisp, mesh)
             seconds = (time.perf_counter() - start) / len(step)
             for index, disparity, (h, w) in zip(step, disparities, sizes):

@@ -28,8 +28,13 @@ class Aggregator(Part):
     uses_segments = False
 
     def aggregate(self, cost: jax.Array, guide: jax.Array, *, labels: jax.Array,
-                  num_segments: int) -> jax.Array:
-        """float32 (D, H, W) -> float32 (D, H, W)."""
+                  num_segments: int, edge=None) -> jax.Array:
+        """float32 (D, H, W) -> float32 (D, H, W).
+
+        ``edge`` (optional): a function of a volume that a filter of several passes applies
+        between them (the graph's copy of the edge into a shape bucket's padding,
+        :func:`sswjax.graph.volume.padding_as_edge`); single passes do not need it.
+        """
         raise NotImplementedError
 
     def bound_factor(self, segments: bool):
@@ -60,14 +65,14 @@ class SideWindowAggregation(Aggregator):
             raise ConfigError("aggregation.segment_weight", "parameter aggregation.segment_weight "
                               "acts only with superpixels (segments is None)")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.aggregation.segment_side_window_aggregation` (the segment term
         is off without superpixels)."""
         segments = SegmentTerm(labels, num_segments, self.segment_weight)
         return segment_side_window_aggregation(cost, guide, radius=self.radius,
                                                iterations=self.iterations,
                                                window_selection=self.window_selection,
-                                               segments=segments)
+                                               segments=segments, between=edge)
 
     def bound_factor(self, segments: bool):
         """``1 + lambda`` with the segment term: the filter averages ``C + lambda S``."""
@@ -80,7 +85,7 @@ class BoxAggregation(Aggregator):
 
     radius: int = option(4, static=True, low=1, high=50, help="window radius")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.baselines.box_filter`."""
         return box_filter(cost, radius=self.radius)
 
@@ -91,7 +96,7 @@ class BilateralAggregation(Aggregator):
 
     radius: int = option(4, static=True, low=1, high=50, help="window radius")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.baselines.bilateral_filter`."""
         return bilateral_filter(cost, guide, radius=self.radius)
 
@@ -103,7 +108,7 @@ class GuidedAggregation(Aggregator):
     radius: int = option(9, static=True, low=1, high=50,
                          help="window radius (9, as in Hosni et al. 2013)")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.baselines.guided_filter`."""
         return guided_filter(cost, guide, radius=self.radius)
 
@@ -114,7 +119,7 @@ class IteratedGuidedAggregation(Aggregator):
 
     radius: int = option(9, static=True, low=1, high=50, help="window radius")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.baselines.iterated_guided_filter`."""
         return iterated_guided_filter(cost, guide, radius=self.radius)
 
@@ -126,6 +131,6 @@ class MedianAggregation(Aggregator):
     # The sorting network of a (2r + 1)^2 window: 128 inputs at most (r <= 5) compile.
     radius: int = option(2, static=True, low=1, high=5, help="window radius")
 
-    def aggregate(self, cost, guide, *, labels, num_segments):
+    def aggregate(self, cost, guide, *, labels, num_segments, edge=None):
         """:func:`~sswjax.stages.baselines.median_cost_filter`."""
         return median_cost_filter(cost, radius=self.radius)

@@ -2,6 +2,7 @@
 
 ==========  =====================================================================================
 ``scopes``  the stage names of the compiled graph (``jax.named_scope``), an enum
+``padding`` a pair padded to a shape bucket matched as at its own size (traced ``valid_shape``)
 ``volume``  the scene a call shares; the volume built in blocks, optimised, folded into winners
 ``refine``  sub-pixel fit, the checks, the fill, the median (Eq. 8-9)
 ``coarse``  coarse-to-fine: the method on the pair halved, the map doubled back

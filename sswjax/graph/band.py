@@ -13,6 +13,7 @@ import jax.numpy as jnp
 
 from sswjax.config import Params
 from sswjax.graph.refine import refine
+from sswjax.graph.padding import edge_filler, outside_as_border, padding_as_edge
 from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import OUT_OF_RANGE_COST, Scene, Selected, cost_bound, prepare_scene
 from sswjax.stages.bands import band_right_view, band_starts, band_winners
@@ -42,11 +43,14 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
     starts = written_once(band_starts(estimate, width=width, limit=limit,
                                        spread_radius=band.spread_radius))
     with scope(Stage.COST):
-        cost = params.cost.band(scene.features, starts, width)
+        cost = padding_as_edge(params.cost.band(scene.features, starts, width),
+                               scene.valid_shape)
     if band.aggregate:
         with scope(Stage.AGGREGATION):
             cost = params.aggregation.aggregate(cost, scene.left, labels=scene.labels,
-                                                num_segments=scene.num_segments)
+                                                num_segments=scene.num_segments,
+                                                edge=edge_filler(scene.valid_shape))
+    cost = outside_as_border(cost, scene.valid_shape, params.cost.bound())
     outside = starts[None] + jnp.arange(width)[:, None, None] >= limit
     cost = jnp.where(outside, jnp.float32(OUT_OF_RANGE_COST), cost)
     bound = cost_bound(params)
@@ -70,18 +74,21 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
 
 
 def match_band(left: jax.Array, right: jax.Array, params: Params, estimate: jax.Array, *,
-               ndisp: int, limit, scene: Scene | None = None) -> tuple[jax.Array, ConfidenceCues]:
+               ndisp: int, limit, scene: Scene | None = None, valid_shape=None
+               ) -> tuple[jax.Array, ConfidenceCues]:
     """``params.band``: the winners over the band around ``estimate`` (:func:`select_band`),
     then the refinement of :func:`~sswjax.graph.refine.refine` (parabola, checks, fill,
     median) at full resolution. ``scene``: the pair's, when the pass before prepared it at
-    this resolution (else prepared here).
+    this resolution (else prepared here, ``valid_shape`` as for
+    :func:`~sswjax.graph.volume.prepare_scene`).
 
     Returns
     -------
     (float32 (H, W), ConfidenceCues)
     """
     with scope(Stage.BAND):
-        scene = prepare_scene(left, right, params) if scene is None else scene
+        if scene is None:
+            scene = prepare_scene(left, right, params, valid_shape)
         selected = select_band(scene, params, estimate, ndisp=ndisp, limit=limit)
         return refine(selected, scene, params, limit)
 

@@ -20,6 +20,7 @@ from sswjax.config import Params
 from sswjax.graph.band import match_band
 from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
+from sswjax.graph.padding import padding_as_edge
 from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import (Selected, aggregate_slices, prepare_scene, select_optimised,
                                  streamed_winners)
@@ -66,8 +67,8 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return aggregate_slices(prepare_scene(left, right, params), params, 0, ndisp)
 
 
-def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
-               ) -> tuple[jax.Array, ConfidenceCues]:
+def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
+               valid_shape=None) -> tuple[jax.Array, ConfidenceCues]:
     """The body of :func:`ssw_disparity`: the map and its confidence cues.
 
     Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
@@ -85,9 +86,9 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
         band = params.band if params.coarse.levels > 1 else None
         disparity, cues = match_coarse_to_fine(left, right,
                                                params.replace(smoothing=None, band=band),
-                                               ndisp, valid_ndisp, inner)
+                                               ndisp, valid_ndisp, inner, valid_shape)
     else:
-        scene = prepare_scene(left, right, params)
+        scene = prepare_scene(left, right, params, valid_shape)
         if params.optimizer is None:
             selected = Selected(streamed_winners(scene, params, ndisp=ndisp, limit=limit,
                                                  chunk=chunk))
@@ -95,19 +96,22 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int
             selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
                                         chunk=chunk)
         disparity, cues = refine(selected, scene, params, limit)
+    # The stages below filter the map: as at the pair's own size within a bucket's padding.
+    disparity = padding_as_edge(disparity, valid_shape)
     if params.band is not None:
         # Again over a few disparities around that map, at this resolution.
         disparity, cues = match_band(left, right, params, disparity, ndisp=ndisp, limit=limit,
-                                     scene=scene)
+                                     scene=scene, valid_shape=valid_shape)
     if params.smoothing is not None:
         with scope(Stage.SMOOTHING):
-            disparity = params.smoothing.smooth(disparity, left, limit)
+            disparity = params.smoothing.smooth(padding_as_edge(disparity, valid_shape), left,
+                                                limit)
     return disparity, cues
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
 def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
-                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK) -> jax.Array:
+                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None) -> jax.Array:
     """The whole SSW method as one jitted pure function.
 
     The static options of ``params`` and its choice of stages are pytree structure, so
@@ -127,12 +131,16 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
     chunk : int >= 0
         K > 0 (default :data:`DEFAULT_CHUNK`): disparities K at a time with a running minimum
         of both views, memory for a few ``(K, H, W)`` blocks; 0: the whole volume at once.
+    valid_shape : int32 (2,), optional
+        Traced height and width of the pair within images padded to a shape bucket (default:
+        the whole images): the padding holds no evidence (its matching cost is the border
+        value at every disparity).
 
     Returns
     -------
     float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk)[0]
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)[0]
 
 
 class SSWOutputs(NamedTuple):
@@ -151,8 +159,8 @@ jax.export.register_namedtuple_serialization(SSWOutputs, serialized_name="sswjax
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
 def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
-                valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE
-                ) -> SSWOutputs:
+                valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE,
+                valid_shape=None) -> SSWOutputs:
     """:func:`ssw_disparity` with the confidence of each pixel, in one jitted graph.
 
     The same graph as :func:`ssw_disparity` (which keeps only the map; ``jit`` drops the rest)
@@ -160,7 +168,7 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
 
     Parameters
     ----------
-    left, right, params, ndisp, valid_ndisp, chunk
+    left, right, params, ndisp, valid_ndisp, chunk, valid_shape
         As for :func:`ssw_disparity`.
     measure : str
         A key of :data:`sswjax.stages.confidence.MEASURES` (static).
@@ -178,13 +186,13 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     >>> out.confidence.shape, str(out.confidence.dtype)
     ((40, 48), 'float32')
     """
-    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk)
+    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)
     return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
 def ssw_cues(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, valid_ndisp=None,
-             chunk: int = DEFAULT_CHUNK) -> tuple[jax.Array, ConfidenceCues]:
+             chunk: int = DEFAULT_CHUNK, valid_shape=None) -> tuple[jax.Array, ConfidenceCues]:
     """The dense disparity of :func:`ssw_disparity` and the raw cues of its confidence.
 
     For analyses that compare confidence measures on one run (``benchmarks/sparsification.py``).
@@ -193,4 +201,4 @@ def ssw_cues(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, v
     -------
     (float32 (H, W), ConfidenceCues)
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk)
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from sswjax.config import Params
+from sswjax.graph.padding import outside_as_border, padding_as_edge
 from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import Scene, Selected
 from sswjax.stages.baselines import box_filter
@@ -30,7 +31,10 @@ def _checked(selected: Selected, scene: Scene, params: Params, distance: jax.Arr
     if checks.uniqueness_gap > 0:
         claim = params.cost.at(scene.features, winners.disparity)
         if checks.uniqueness_radius > 0:
-            claim = box_filter(claim, radius=checks.uniqueness_radius)
+            claim = box_filter(padding_as_edge(claim, scene.valid_shape),
+                               radius=checks.uniqueness_radius)
+        # A bucket's padding claims no right pixel (at the largest cost it loses every claim).
+        claim = outside_as_border(claim, scene.valid_shape, params.cost.bound())
         valid &= ~uniqueness_violations(winners.disparity, claim, gap=checks.uniqueness_gap)
     if checks.aggregated_gap > 0 and selected.aggregated_right is not None:
         # The optimiser spreads the foreground over occlusions in both views alike; the
@@ -60,7 +64,12 @@ def refine(selected: Selected, scene: Scene, params: Params, limit
         The dense map and the cues of its confidence (:mod:`sswjax.stages.confidence`);
         callers that keep only the map let ``jit`` drop the cues.
     """
-    winners = selected.winners
+    # Each map the filters below read is replicated into a shape bucket's padding, as they pad
+    # (the other maps are read pixel by pixel).
+    def edge(values):
+        return padding_as_edge(values, scene.valid_shape)
+
+    winners = selected.winners._replace(disparity=edge(selected.winners.disparity))
     with scope(Stage.SELECTION):
         if params.selection.subpixel:
             before, centre, after = selected.parabola or (winners.before, winners.cost,
@@ -73,13 +82,13 @@ def refine(selected: Selected, scene: Scene, params: Params, limit
     with scope(Stage.REFINEMENT):
         distance = left_right_distance(winners.disparity, winners.right_disparity)
         if params.checks is not None:
-            valid = _checked(selected, scene, params, distance)
+            valid = edge(_checked(selected._replace(winners=winners), scene, params, distance))
             failed = ~valid
-            disparity = params.fill.fill(disparity, valid, guide=scene.left, labels=scene.labels,
-                                         num_segments=scene.num_segments)
+            disparity = params.fill.fill(edge(disparity), valid, guide=scene.left,
+                                         labels=scene.labels, num_segments=scene.num_segments)
         median = params.refinement
         if median is not None:
-            disparity = side_window_median_filter(disparity, radius=median.radius,
+            disparity = side_window_median_filter(edge(disparity), radius=median.radius,
                                                   iterations=median.iterations)
         disparity = jnp.clip(disparity, 0, limit - 1)
     cues = ConfidenceCues(winners.cost, winners.second, distance, initial, failed)

@@ -21,6 +21,8 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax.config import Params
+from sswjax.graph.padding import (edge_cost_slices, edge_filler, outside_as_border,
+                                  padding_as_edge)
 from sswjax.graph.scopes import Stage, scope
 from sswjax.stages.cost import MatchingFeatures
 from sswjax.stages.selection import Winners, fold_right_view, fold_winners, no_winners
@@ -48,12 +50,16 @@ class Scene(NamedTuple):
         Superpixels of the left image (zeros without them).
     num_segments : int
         Their static count, 0 without superpixels.
+    valid_shape : int32 (2,) or None
+        The pair's own height and width when it is padded to a shape bucket (None: not
+        padded; :mod:`sswjax.graph.padding`).
     """
 
     left: jax.Array
     features: MatchingFeatures
     labels: jax.Array
     num_segments: int
+    valid_shape: jax.Array | None = None
 
 
 class Selected(NamedTuple):
@@ -82,26 +88,36 @@ def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
     return params.segments.labels(left)
 
 
-def prepare_scene(left: jax.Array, right: jax.Array, params: Params) -> Scene:
-    """Pre-processing, the cost's features and the superpixels of a pair."""
+def prepare_scene(left: jax.Array, right: jax.Array, params: Params, valid_shape=None) -> Scene:
+    """Pre-processing, the cost's features and the superpixels of a pair; ``valid_shape``
+    (int32 (2,), optional) the pair's own height and width when it is padded."""
     with scope(Stage.COST):
         preprocess = params.preprocess
         seen = (left, right) if preprocess is None else (preprocess.apply(left),
                                                          preprocess.apply(right))
         features = params.cost.features(*seen)
+        if valid_shape is not None:
+            # The census and gradient windows of the padded rows reach back into the pair:
+            # the edge's features instead, so that those rows cost what the last row does.
+            features = features._replace(**{
+                name: padding_as_edge(value, valid_shape)
+                for name, value in features._asdict().items() if isinstance(value, jax.Array)})
     with scope(Stage.SUPERPIXELS):
         labels, num_segments = superpixels(left, params)
-    return Scene(left, features, labels, num_segments)
+    return Scene(left, features, labels, num_segments, valid_shape)
 
 
 def aggregate_slices(scene: Scene, params: Params, first, count: int) -> jax.Array:
     """Eq. (5) and (7) for disparities ``first .. first + count - 1``: the cost, then its
     aggregation, float32 (count, H, W)."""
     with scope(Stage.COST):
-        cost = params.cost.slices(scene.features, first, count)
+        cost = edge_cost_slices(params.cost.slices, scene.features, first, count,
+                                scene.valid_shape, params.cost.bound())
     with scope(Stage.AGGREGATION):
-        return params.aggregation.aggregate(cost, scene.left, labels=scene.labels,
-                                            num_segments=scene.num_segments)
+        aggregated = params.aggregation.aggregate(cost, scene.left, labels=scene.labels,
+                                                  num_segments=scene.num_segments,
+                                                  edge=edge_filler(scene.valid_shape))
+    return outside_as_border(aggregated, scene.valid_shape, params.cost.bound())
 
 
 def aggregated_volume(scene: Scene, params: Params, *, ndisp: int, chunk: int, store=None

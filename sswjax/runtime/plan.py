@@ -22,7 +22,7 @@ import numpy as np
 from sswjax.config import Params
 from sswjax.graph import DEFAULT_CHUNK
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
-from sswjax.runtime.tiles import Tiling, in_tiles
+from sswjax.runtime.tiles import Tiling, Window, in_tiles
 
 __all__ = ["ExecutionPlan", "bind_graph", "check_plan", "execute", "graph_call", "plan_tiling",
            "pyramid_align", "split_settings", "tiling_words"]
@@ -149,7 +149,8 @@ def pyramid_align(params: Params) -> int:
 def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionPlan
                ) -> tuple[np.ndarray, np.ndarray, dict]:
     """The pair padded to the plan's bucket, and the graph's keyword arguments besides the
-    parameters: ``ndisp`` (bucketed), ``chunk`` and, with buckets, ``valid_ndisp`` (an int).
+    parameters: ``ndisp`` (bucketed), ``chunk`` and, with buckets, ``valid_ndisp`` (an int)
+    and ``valid_shape`` (the pair's own ``(H, W)``).
 
     Parameters
     ----------
@@ -165,17 +166,25 @@ def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionP
         return left, right, {"ndisp": int(ndisp), "chunk": plan.disparity_chunk}
     padded_h, padded_w, padded_ndisp = bucket_shape(left.shape[0], left.shape[1], int(ndisp),
                                                     plan.buckets)
+    valid_shape = tuple(left.shape[:2])
     left, right = pad_to_bucket(left, right, padded_h, padded_w)
     return left, right, {"ndisp": padded_ndisp, "valid_ndisp": int(ndisp),
-                         "chunk": plan.disparity_chunk}
+                         "valid_shape": valid_shape, "chunk": plan.disparity_chunk}
 
 
-def bind_graph(graph, params: Params, call: dict):
+def bind_graph(graph, params: Params, call: dict, window: Window | None = None):
     """``graph`` with its parameters and the keyword arguments of :func:`graph_call` bound
-    (``valid_ndisp`` as the traced int32 scalar the graph takes)."""
+    (``valid_ndisp`` as the traced int32 scalar the graph takes, ``valid_shape`` as an int32
+    (2,) array, of the part of ``window`` (default: the whole image) inside it)."""
     call = dict(call)
     if "valid_ndisp" in call:
         call["valid_ndisp"] = jnp.int32(call["valid_ndisp"])
+    if "valid_shape" in call:
+        height, width = call["valid_shape"]
+        if window is not None:
+            height = min(max(height - window.top, 0), window.height)
+            width = min(max(width - window.left, 0), window.width)
+        call["valid_shape"] = jnp.array([height, width], jnp.int32)
     return functools.partial(graph, params=params, **call)
 
 
@@ -205,7 +214,8 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     height, width = left.shape[:2]
     left, right, call = graph_call(left, right, ndisp, plan)
     tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
-    maps = in_tiles(bind_graph(graph, params, call), left, right, tiling)
+    maps = in_tiles(functools.partial(bind_graph, graph, params, call), left, right, tiling,
+                    bound=True)
     if isinstance(maps, tuple):
         return type(maps)(*(m[:height, :width] for m in maps))
     return maps[:height, :width]

@@ -190,7 +190,8 @@ def _to_numpy(result):
     return np.asarray(result)
 
 
-def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling):
+def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling, *,
+             bound: bool = False):
     """``run(left, right)`` on the windows of ``tiling``, one after the other, stitched.
 
     Memory follows the window instead of the image. A tiling of one window that covers the
@@ -200,7 +201,9 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling)
     ----------
     run : callable
         ``run(left, right) -> (h, w)`` map of float32 ``(h, w, C)`` JAX images, or a
-        NamedTuple of such maps of any dtypes: each is stitched.
+        NamedTuple of such maps of any dtypes: each is stitched. With ``bound``,
+        ``run(window)`` gives that function for the :class:`Window` (or None for the whole
+        image).
     left, right : float32 (H, W, C)
     tiling : Tiling
 
@@ -218,12 +221,14 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling)
     height, width = left.shape[:2]
     windows = tile_windows(height, width, tiling)
     if len(windows) == 1:
-        return _to_numpy(run(jnp.asarray(left), jnp.asarray(right)))
+        whole = run(None) if bound else run
+        return _to_numpy(whole(jnp.asarray(left), jnp.asarray(right)))
 
     def pieces():
         for w in windows:
             rows, cols = slice(w.top, w.top + w.height), slice(w.left, w.left + w.width)
-            yield w, core_of(w, _to_numpy(run(jnp.asarray(left[rows, cols]),
-                                              jnp.asarray(right[rows, cols]))))
+            window_run = run(w) if bound else run
+            yield w, core_of(w, _to_numpy(window_run(jnp.asarray(left[rows, cols]),
+                                                     jnp.asarray(right[rows, cols]))))
 
     return assemble(height, width, pieces())

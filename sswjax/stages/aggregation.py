@@ -70,6 +70,7 @@ def segment_side_window_aggregation(
     iterations: int,
     window_selection: str = "slice",
     segments: SegmentTerm | None = None,
+    between=None,
 ) -> jax.Array:
     """Segment-side-window aggregation: ``SWF(C + lambda * S)`` (Eq. 7 as we read it).
 
@@ -84,6 +85,8 @@ def segment_side_window_aggregation(
     window_selection : {"guide", "slice"}
     segments : SegmentTerm, optional
         Superpixels and lambda; without them (or with ``num_segments=0``) the term is off.
+    between : callable, optional
+        Applied to the volume between passes (see :func:`side_window_box_filter`).
 
     Returns
     -------
@@ -102,5 +105,5 @@ def segment_side_window_aggregation(
             cost, segments.labels, num_segments=segments.num_segments)
     return side_window_box_filter(
         cost, radius=radius, iterations=iterations,
-        guide=guide if window_selection == "guide" else None,
+        guide=guide if window_selection == "guide" else None, between=between,
     )

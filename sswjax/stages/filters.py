@@ -201,6 +201,7 @@ def side_window_box_filter(
     iterations: int = 1,
     guide: jax.Array | None = None,
     method: str = "slices",
+    between: Callable[[jax.Array], jax.Array] | None = None,
 ) -> jax.Array:
     """Side-window box filter (S-BOX of Yin et al. 2019), optionally guided.
 
@@ -217,6 +218,9 @@ def side_window_box_filter(
     iterations : int >= 0
     guide : float32 (H, W, C) or (H, W), optional
     method : {"slices", "cumsum", "reduce_window"}
+    between : callable, optional
+        A function of an array (..., H, W) applied to ``x`` (and to a guide, channels first)
+        between passes; the graph copies the edge into a shape bucket's padding with it.
 
     Returns
     -------
@@ -238,7 +242,10 @@ def side_window_box_filter(
         if guide.shape[:2] != x.shape[-2:]:
             raise ValueError(f"guide size {guide.shape[:2]} differs from x size {x.shape[-2:]}")
         guide = _channels_first(guide)
-    for _ in range(iterations):
+    for iteration in range(iterations):
+        if iteration > 0 and between is not None:
+            x = between(x)
+            guide = None if guide is None else between(guide)
         if guide is None:
             x = _closest_side_window_mean(x, radius, method)
         else:
