@@ -87,7 +87,7 @@ def test_each_window_of_a_padded_pair_is_told_how_much_of_it_is_the_pair():
     windows = tile_windows(128, 128, Tiling(48, 48, 8, 8))
     assert len(windows) > 1
     for window in windows:
-        bound = bind_graph(lambda *a, **k: k["valid_shape"], CHEAP, call, window)
+        bound = bind_graph(lambda *a, **k: k["valid_shape"], CHEAP, call, window=window)
         assert tuple(np.asarray(bound()).tolist()) == (
             min(max(70 - window.top, 0), window.height),
             min(max(100 - window.left, 0), window.width))

@@ -124,5 +124,5 @@ def match_window(name: str, keywords: dict, left: np.ndarray, right: np.ndarray,
     graph = _graph(name)
     if keywords:
         graph = functools.partial(graph, **keywords)
-    maps = bind_graph(graph, params, call, window)(jnp.asarray(left), jnp.asarray(right))
+    maps = bind_graph(graph, params, call, window=window)(jnp.asarray(left), jnp.asarray(right))
     return window, core_of(window, maps)

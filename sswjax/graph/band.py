@@ -88,7 +88,7 @@ def match_band(left: jax.Array, right: jax.Array, params: Params, estimate: jax.
     """
     with scope(Stage.BAND):
         if scene is None:
-            scene = prepare_scene(left, right, params, valid_shape)
+            scene = prepare_scene(left, right, params, valid_shape=valid_shape)
         selected = select_band(scene, params, estimate, ndisp=ndisp, limit=limit)
         return refine(selected, scene, params, limit)
 

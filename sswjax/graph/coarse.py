@@ -23,7 +23,7 @@ __all__ = ["match_coarse_to_fine"]
 
 
 def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndisp: int,
-                         valid_ndisp, match: Callable, valid_shape=None
+                         valid_ndisp, match: Callable, *, valid_shape=None
                          ) -> tuple[jax.Array, ConfidenceCues]:
     """``params.coarse`` with ``levels = L``: the method with ``L - 1`` levels on the pair
     halved, its map doubled back guided by the left image

@@ -67,7 +67,7 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
     return aggregate_slices(prepare_scene(left, right, params), params, 0, ndisp)
 
 
-def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
+def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int, *,
                valid_shape=None) -> tuple[jax.Array, ConfidenceCues]:
     """The body of :func:`ssw_disparity`: the map and its confidence cues.
 
@@ -86,9 +86,9 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
         band = params.band if params.coarse.levels > 1 else None
         disparity, cues = match_coarse_to_fine(left, right,
                                                params.replace(smoothing=None, band=band),
-                                               ndisp, valid_ndisp, inner, valid_shape)
+                                               ndisp, valid_ndisp, inner, valid_shape=valid_shape)
     else:
-        scene = prepare_scene(left, right, params, valid_shape)
+        scene = prepare_scene(left, right, params, valid_shape=valid_shape)
         if params.optimizer is None:
             selected = Selected(streamed_winners(scene, params, ndisp=ndisp, limit=limit,
                                                  chunk=chunk))
@@ -140,7 +140,7 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
     -------
     float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)[0]
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape=valid_shape)[0]
 
 
 class SSWOutputs(NamedTuple):
@@ -186,7 +186,8 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     >>> out.confidence.shape, str(out.confidence.dtype)
     ((40, 48), 'float32')
     """
-    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)
+    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
+                                 valid_shape=valid_shape)
     return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
 
 
@@ -201,4 +202,4 @@ def ssw_cues(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, v
     -------
     (float32 (H, W), ConfidenceCues)
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape)
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape=valid_shape)

@@ -88,7 +88,8 @@ def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
     return params.segments.labels(left)
 
 
-def prepare_scene(left: jax.Array, right: jax.Array, params: Params, valid_shape=None) -> Scene:
+def prepare_scene(left: jax.Array, right: jax.Array, params: Params, *, valid_shape=None
+                  ) -> Scene:
     """Pre-processing, the cost's features and the superpixels of a pair; ``valid_shape``
     (int32 (2,), optional) the pair's own height and width when it is padded."""
     with scope(Stage.COST):

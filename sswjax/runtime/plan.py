@@ -172,7 +172,7 @@ def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionP
                          "valid_shape": valid_shape, "chunk": plan.disparity_chunk}
 
 
-def bind_graph(graph, params: Params, call: dict, window: Window | None = None):
+def bind_graph(graph, params: Params, call: dict, *, window: Window | None = None):
     """``graph`` with its parameters and the keyword arguments of :func:`graph_call` bound
     (``valid_ndisp`` as the traced int32 scalar the graph takes, ``valid_shape`` as an int32
     (2,) array, of the part of ``window`` (default: the whole image) inside it)."""
@@ -214,8 +214,8 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     height, width = left.shape[:2]
     left, right, call = graph_call(left, right, ndisp, plan)
     tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
-    maps = in_tiles(functools.partial(bind_graph, graph, params, call), left, right, tiling,
-                    bound=True)
+    maps = in_tiles(lambda window: bind_graph(graph, params, call, window=window), left, right,
+                    tiling, bound=True)
     if isinstance(maps, tuple):
         return type(maps)(*(m[:height, :width] for m in maps))
     return maps[:height, :width]
