@@ -96,12 +96,13 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
             selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
                                         chunk=chunk)
         disparity, cues = refine(selected, scene, params, limit)
-    # The stages below filter the map: as at the pair's own size within a bucket's padding.
-    disparity = padding_as_edge(disparity, valid_shape)
+    # The band and the smoothing filter the map: each reads it with a bucket's padding holding
+    # the edge, as at the pair's own size (a coarser level's caller copies the edge itself).
     if params.band is not None:
         # Again over a few disparities around that map, at this resolution.
-        disparity, cues = match_band(left, right, params, disparity, ndisp=ndisp, limit=limit,
-                                     scene=scene, valid_shape=valid_shape)
+        disparity, cues = match_band(left, right, params, padding_as_edge(disparity, valid_shape),
+                                     ndisp=ndisp, limit=limit, scene=scene,
+                                     valid_shape=valid_shape)
     if params.smoothing is not None:
         with scope(Stage.SMOOTHING):
             disparity = params.smoothing.smooth(padding_as_edge(disparity, valid_shape), left,
