@@ -6,11 +6,13 @@ import os
 import subprocess
 import sys
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import sswjax
 from sswjax.runtime.executables import EXECUTABLES
+from sswjax.graph.padding import padding_as_edge
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape
 
 BUCKETS = ShapeBuckets(size_step=64, ndisp_step=16)
@@ -71,7 +73,7 @@ def test_second_process_reuses_the_compilation_cache(tmp_path):
     assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == entries  # reused, not re-added
 
 
-@pytest.mark.parametrize("name", ["accurate", "balanced"])
+@pytest.mark.parametrize("name", ["accurate", "balanced", "fast"])
 def test_a_padded_pair_is_matched_as_at_its_own_size(name):
     # Padding replicates the last row and column of both views; matched as such, the padded
     # columns (left edge copies against the real right image) pulled a corner of the map off
@@ -86,3 +88,21 @@ def test_a_padded_pair_is_matched_as_at_its_own_size(name):
                           buckets=ShapeBuckets(size_step=64, ndisp_step=32))
     assert bucket_shape(75, 203, 24, ShapeBuckets(size_step=64, ndisp_step=32)) == (128, 256, 32)
     assert np.mean(np.abs(own - padded) > 0.5) < 0.002
+
+
+@pytest.mark.parametrize("reach", [None, 1, 3, 40])
+@pytest.mark.parametrize("valid", [(5, 7), (9, 4), (1, 1), (9, 11)])
+def test_padding_as_edge_copies_the_nearest_pixel_of_the_pair(valid, reach):
+    # Reference: the pair cropped to its own size and padded by numpy's edge mode. With a
+    # reach only that many rows and columns past the edge need be copies, and the
+    # padding beyond them in both directions is left as it was.
+    values = np.random.default_rng(0).normal(size=(2, 9, 11)).astype(np.float32)
+    height, width = valid
+    expected = np.pad(values[:, :height, :width], ((0, 0), (0, 9 - height), (0, 11 - width)),
+                      mode="edge")
+    got = np.asarray(padding_as_edge(jnp.asarray(values), jnp.array(valid, jnp.int32),
+                                     reach=reach))
+    rows, columns = (9, 11) if reach is None else (height + reach, width + reach)
+    np.testing.assert_array_equal(got[:, :rows, :columns], expected[:, :rows, :columns])
+    if reach is not None:
+        np.testing.assert_array_equal(got[:, rows:, columns:], values[:, rows:, columns:])

@@ -31,9 +31,9 @@ class Aggregator(Part):
                   num_segments: int, edge=None) -> jax.Array:
         """float32 (D, H, W) -> float32 (D, H, W).
 
-        ``edge`` (optional): a function of a volume that a filter of several passes applies
-        between them (the graph's copy of the edge into a shape bucket's padding,
-        :func:`sswjax.graph.volume.padding_as_edge`); single passes do not need it.
+        ``edge`` (optional): ``edge(volume, reach)``, what a filter of several passes applies
+        between them, ``reach`` its radius (the graph's copy of the edge into a shape bucket's
+        padding, :func:`sswjax.graph.padding.padding_as_edge`); single passes do not need it.
         """
         raise NotImplementedError
 

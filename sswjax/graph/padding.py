@@ -31,32 +31,60 @@ from sswjax.stages.buffers import written_once
 __all__ = ["edge_cost_slices", "edge_filler", "outside_as_border", "padding_as_edge"]
 
 
-def padding_as_edge(values: jax.Array, valid_shape) -> jax.Array:
+def padding_as_edge(values: jax.Array, valid_shape, *, reach: int | None = None) -> jax.Array:
     """``values`` (..., H, W) with the padding a copy of the nearest pixel of the pair.
+
+    ``reach`` (static, optional): how many rows and columns beyond the pair's edge a reader
+    looks (a filter's radius); only those are copied, the rest of the padding is left as it
+    is. Without it, all of the padding.
 
     Examples
     --------
     >>> padding_as_edge(jnp.arange(6.0).reshape(2, 3), jnp.array([1, 2])).tolist()
     [[0.0, 1.0, 1.0], [0.0, 1.0, 1.0]]
+    >>> padding_as_edge(jnp.arange(4.0)[None], jnp.array([1, 2]), reach=1).tolist()
+    [[0.0, 1.0, 1.0, 3.0]]
     """
     if valid_shape is None:
         return values
+    if reach is not None:
+        # Strips of `reach` columns, then rows, written in place: a volume between the passes
+        # of a filter is not read whole again (measured: `fast` on a padded Motorcycle, 102 ms
+        # of aggregation by the gather below, 73 ms so).
+        values = _edge_strip(values, valid_shape[1], reach, axis=values.ndim - 1)
+        return _edge_strip(values, valid_shape[0], reach, axis=values.ndim - 2)
     height, width = values.shape[-2:]
-    # Written once: XLA would otherwise recompute the producer for the edge's slice.
-    values = written_once(values)
-    # The edge column, then the edge row of the columns so filled (the corner follows).
-    column = lax.dynamic_slice_in_dim(values, valid_shape[1] - 1, 1, axis=values.ndim - 1)
-    values = jnp.where(jnp.arange(width) < valid_shape[1], values, column)
-    row = lax.dynamic_slice_in_dim(values, valid_shape[0] - 1, 1, axis=values.ndim - 2)
-    return jnp.where(jnp.arange(height)[:, None] < valid_shape[0], values, row)
+    if values.ndim <= 2:
+        # A map written once: the gather would otherwise carry its producer (a reduction over
+        # the disparities for the winners' map: 30 ms of `fast`'s refinement, 11 ms so).
+        values = written_once(values)
+    # One gather at clamped indices: it fuses into its readers where a copy of the edge
+    # column and row, read at a traced index, would make XLA write the volume out first.
+    rows = jnp.minimum(jnp.arange(height), valid_shape[0] - 1)
+    columns = jnp.minimum(jnp.arange(width), valid_shape[1] - 1)
+    return values[..., rows[:, None], columns[None, :]]
 
 
-def edge_filler(valid_shape) -> Callable[[jax.Array], jax.Array] | None:
-    """:func:`padding_as_edge` bound to ``valid_shape``, or None without padding (what a
-    filter of several passes applies between them)."""
+def _edge_strip(values: jax.Array, valid, reach: int, *, axis: int) -> jax.Array:
+    """``values`` with the ``reach`` indices of ``axis`` from ``valid`` on (fewer at the end
+    of the axis) a copy of index ``valid - 1``."""
+    size = values.shape[axis]
+    reach = min(reach, size)
+    # The strip moves left at the end of the axis; what it then holds of the pair stays.
+    start = jnp.minimum(valid, size - reach)
+    strip = lax.dynamic_slice_in_dim(values, start, reach, axis=axis)
+    edge = lax.dynamic_slice_in_dim(values, valid - 1, 1, axis=axis)
+    index = (start + jnp.arange(reach)).reshape((reach,) + (1,) * (values.ndim - 1 - axis))
+    return lax.dynamic_update_slice_in_dim(values, jnp.where(index < valid, strip, edge),
+                                           start, axis=axis)
+
+
+def edge_filler(valid_shape) -> Callable[..., jax.Array] | None:
+    """:func:`padding_as_edge` bound to ``valid_shape``: a function of the values and the
+    reach, what a filter of several passes applies between them; None without padding."""
     if valid_shape is None:
         return None
-    return lambda values: padding_as_edge(values, valid_shape)
+    return lambda values, reach: padding_as_edge(values, valid_shape, reach=reach)
 
 
 def outside_as_border(values: jax.Array, valid_shape, border) -> jax.Array:

@@ -201,7 +201,7 @@ def side_window_box_filter(
     iterations: int = 1,
     guide: jax.Array | None = None,
     method: str = "slices",
-    between: Callable[[jax.Array], jax.Array] | None = None,
+    between: Callable[[jax.Array, int], jax.Array] | None = None,
 ) -> jax.Array:
     """Side-window box filter (S-BOX of Yin et al. 2019), optionally guided.
 
@@ -219,7 +219,8 @@ def side_window_box_filter(
     guide : float32 (H, W, C) or (H, W), optional
     method : {"slices", "cumsum", "reduce_window"}
     between : callable, optional
-        A function of an array (..., H, W) applied to ``x`` (and to a guide, channels first)
+        ``between(values, radius)``: a function of an array (..., H, W) and of how far
+        beyond a pixel the next pass reads, applied to ``x`` (and to a guide, channels first)
         between passes; the graph copies the edge into a shape bucket's padding with it.
 
     Returns
@@ -244,8 +245,8 @@ def side_window_box_filter(
         guide = _channels_first(guide)
     for iteration in range(iterations):
         if iteration > 0 and between is not None:
-            x = between(x)
-            guide = None if guide is None else between(guide)
+            x = between(x, radius)
+            guide = None if guide is None else between(guide, radius)
         if guide is None:
             x = _closest_side_window_mean(x, radius, method)
         else:
