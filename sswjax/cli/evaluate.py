@@ -91,9 +91,9 @@ def add_evaluate_command(commands) -> None:
                         help="also write comparison.png (needs matplotlib)")
     parser.add_argument("--bucket", action="store_true",
                         help="pad pairs to a few bucketed shapes: fewer compilations (3 for "
-                             "trainingQ), slightly different results at the bottom/right "
-                             "borders; SSW methods then run one pair per JAX device per call, "
-                             "over all devices (a scene's time: its call's time / its pairs)")
+                             "trainingQ), the same maps, slower warm runs; SSW methods then run "
+                             "one pair per JAX device per call, over all devices (a scene's time: "
+                             "its call's time / its pairs)")
     parser.add_argument("--skip-bad", action="store_true",
                         help="score the scenes that can be scored and list the others with why "
                              "(on stderr and in results.md); by default a run with any scene "

@@ -88,9 +88,9 @@ def add_match_command(commands) -> None:
     parser.add_argument("--resume", action="store_true",
                         help="folders: keep the maps already in OUT_DIR, match the others")
     parser.add_argument("--bucket", action=argparse.BooleanOptionalAction, default=None,
-                        help="folders: pad pairs to a few bucketed shapes (fewer compilations, "
-                             "slightly different maps near the bottom and right borders); by "
-                             "default only when the pairs come in more than 8 sizes")
+                        help="folders: pad pairs to a few bucketed shapes (fewer compilations, the "
+                             "same maps, warm runs slower by the padding's work); by default "
+                             "only when the pairs come in more than 8 sizes")
     parser.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
     add_confidence_options(parser)
     add_geometry_options(parser)
