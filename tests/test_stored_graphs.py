@@ -1,6 +1,7 @@
-"""Traced graphs stored on disk (sswjax.runtime.stored) and ``sswjax warmup``: a stored graph
-gives jax.jit's results bit for bit, is found again by the same signature only, survives a
-damaged file; a warmed shape is matched in a new process without tracing or compiling."""
+"""Traced graphs and executables stored on disk (sswjax.runtime.stored) and ``sswjax warmup``: a
+stored graph gives jax.jit's results bit for bit, is found again by the same signature only,
+survives a damaged file, runs under transformations; a warmed shape is matched in a new process
+without tracing or compiling."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 
 import sswjax
 from sswjax.graph import ssw_disparity, ssw_outputs
-from sswjax.runtime.stored import StoredGraph, graph_key, source_digest
+from sswjax.runtime.stored import StoredGraph, graph_key, host_digest, source_digest
 
 _STATIC = ("ndisp", "chunk", "measure")
 # The paper's method without segments and smoothing: the quickest graph to compile here.
@@ -37,8 +38,12 @@ def test_a_stored_graph_gives_the_jitted_results_bit_for_bit(tmp_path, pair):
     fn = ssw_outputs  # a namedtuple of results (ssw_disparity's array: the tests below)
     first = _stored(fn.__wrapped__, tmp_path, *pair, _PARAMS, ndisp=8)
     assert not first.loaded and len(list(tmp_path.glob("*.jaxexport"))) == 1
+    assert not list(tmp_path.glob("*.xlaexec"))  # compiled at the first call, not before
+    first(*pair, _PARAMS, ndisp=8)
+    (executable,) = tmp_path.glob("*.xlaexec")
+    assert host_digest()[:16] in executable.name
     again = _stored(fn.__wrapped__, tmp_path, *pair, _PARAMS, ndisp=8)
-    assert again.loaded
+    assert again.loaded and again.executable_loaded
     expected = fn(*pair, _PARAMS, ndisp=8)
     got = again(*pair, _PARAMS, ndisp=8)
     assert type(got) is type(expected)
@@ -83,6 +88,40 @@ def test_a_damaged_stored_graph_is_traced_and_stored_anew(tmp_path, pair):
     np.testing.assert_array_equal(np.asarray(graph(*pair, params, ndisp=8)),
                                   np.asarray(ssw_disparity(*pair, params, ndisp=8)))
     assert _stored(fn, tmp_path, *pair, params, ndisp=8).loaded
+
+
+def test_a_stored_executable_survives_damage_and_transformations(tmp_path, pair):
+    params = _PARAMS
+    fn = ssw_disparity.__wrapped__
+    expected = np.asarray(ssw_disparity(*pair, params, ndisp=8))
+    _stored(fn, tmp_path, *pair, params, ndisp=8)(*pair, params, ndisp=8)
+    (path,) = tmp_path.glob("*.xlaexec")
+    whole = path.read_bytes()
+    middle = len(whole) // 2
+    for damaged in (whole[:100], whole[:middle] + bytes(64) + whole[middle + 64:]):
+        path.write_bytes(damaged)  # cut short; zeros inside the machine code
+        graph = _stored(fn, tmp_path, *pair, params, ndisp=8)
+        assert graph.loaded and not graph.executable_loaded  # the trace is still good
+        np.testing.assert_array_equal(np.asarray(graph(*pair, params, ndisp=8)), expected)
+        assert path.read_bytes() not in (damaged, b"")  # compiled again and stored anew
+    graph = _stored(fn, tmp_path, *pair, params, ndisp=8)
+    assert graph.executable_loaded
+    doubled = jax.jit(lambda left, right: 2 * graph(left, right, params, ndisp=8))(*pair)
+    # under a transformation the call goes through the trace, inlined in a larger program that
+    # XLA may fuse otherwise: equal up to float32 rounding
+    np.testing.assert_allclose(np.asarray(doubled), 2 * expected, rtol=1e-6)
+    graph.clear_cache()  # dropped, then read again from its file
+    np.testing.assert_array_equal(np.asarray(graph(*pair, params, ndisp=8)), expected)
+
+
+def test_importing_the_package_leaves_jax_unstarted():
+    """No JAX array at import: a user may still configure JAX (platform, devices) after
+    ``import sswjax``, and a stored executable's host key sees the configured devices."""
+    code = ("import sswjax\nfrom jax._src import xla_bridge\n"
+            "print(len(xla_bridge._backends))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "0", done.stderr
 
 
 def _cli(*args, cache):

@@ -1,11 +1,22 @@
-"""Traced graphs kept on disk (``jax.export``), so that a new process does not trace them again.
+"""Traced graphs and their executables kept on disk, so that a new process neither traces,
+lowers nor compiles them again.
 
 XLA's persistent compilation cache (:mod:`sswjax.runtime.compilation`) is keyed by the lowered
 program, so a fresh process must still trace and lower the whole graph before it can look the
 executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a warm-cache
-``sswjax match``. This module keeps the lowered program itself, serialized by ``jax.export``
-(StableHLO), in ``<compilation cache>/graphs``. A process that finds it deserializes it and
-lowers a call to it (a fraction of the trace); XLA's cache then gives the executable.
+``sswjax match``. This module keeps two files per graph in ``<compilation cache>/graphs``:
+
+- the lowered program, serialized by ``jax.export`` (StableHLO, ``.jaxexport``): a process that
+  finds it deserializes it and lowers a call to it (a fraction of the trace); XLA's cache then
+  gives the executable;
+- the compiled executable itself (``.xlaexec``, :mod:`jax.experimental.serialize_executable`),
+  keyed further by the host (:func:`host_digest`: the backend and its version, the devices,
+  ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA compiles for): a process
+  that finds it loads it directly, and skips the lowering as well (0.25 s of ``accurate``'s
+  first call on a trainingQ pair). It is used for calls on concrete arrays of the default
+  device; a call under a transformation (a tracer among the arguments) or with arrays on
+  another device goes through the lowered program as above. The file is a pickle that loads
+  machine code: like XLA's own cache, the folder must be one only trusted users write to.
 
 A stored graph is keyed by everything that decides its trace (:func:`graph_key`): the sswjax
 source (a digest of every module of the package, so an edited checkout never reads a graph of
@@ -26,16 +37,20 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import pickle
+import platform
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import jax
 import jaxlib
+from jax.experimental import serialize_executable
 
-__all__ = ["StoredGraph", "graph_folder", "graph_key", "source_digest"]
+__all__ = ["StoredGraph", "graph_folder", "graph_key", "host_digest", "source_digest"]
 
 _SUFFIX = ".jaxexport"
+_EXECUTABLE_SUFFIX = ".xlaexec"
 
 
 def graph_folder() -> Path | None:
@@ -54,6 +69,29 @@ def source_digest() -> str:
     for path in sorted(package.rglob("*.py")):
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
+
+
+def _cpu_description() -> str:
+    """The CPU's model and instruction-set lines of ``/proc/cpuinfo`` (each distinct line
+    once), or :mod:`platform`'s names where that file is missing."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return f"{platform.machine()} {platform.processor()}"
+    wanted = ("model name", "flags", "Features", "CPU implementer", "CPU part")
+    return "\n".join(dict.fromkeys(line for line in text.splitlines() if line.startswith(wanted)))
+
+
+@functools.cache
+def host_digest() -> str:
+    """SHA-256 of what an executable compiled in this process depends on beyond its program:
+    the default backend's platform and version, its first device's kind, the device count,
+    ``XLA_FLAGS`` and the CPU (:func:`_cpu_description`)."""
+    device = jax.devices()[0]
+    text = "\n".join([device.client.platform, device.client.platform_version,
+                      device.device_kind, str(jax.device_count()),
+                      os.environ.get("XLA_FLAGS", ""), _cpu_description()])
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _abstract(leaf) -> jax.ShapeDtypeStruct:
@@ -91,22 +129,54 @@ def _write_atomically(path: Path, data: bytes) -> None:
         raise
 
 
-def _load(path: Path):
-    """The stored graph at ``path``, or ``None`` (absent, or damaged: then removed)."""
+def _load(path: Path, read: Callable):
+    """``read(bytes)`` of the file at ``path``, or ``None`` (absent, or damaged: then
+    removed)."""
     try:
         data = path.read_bytes()
     except OSError:
         return None
     try:
-        return jax.export.deserialize(bytearray(data))
-    except Exception:  # noqa: BLE001 - any unreadable file: trace again and store it anew
+        return read(data)
+    except Exception:  # noqa: BLE001 - any unreadable file: made again and stored anew
         path.unlink(missing_ok=True)
         return None
 
 
+def _read_graph(data: bytes) -> jax.export.Exported:
+    return jax.export.deserialize(bytearray(data))
+
+
+def _executable_bytes(compiled: jax.stages.Compiled) -> bytes:
+    """The file of an executable: the SHA-256 of the pickle, then the pickle of
+    ``serialize_executable.serialize(compiled)`` (machine code, its argument and result
+    trees)."""
+    data = pickle.dumps(serialize_executable.serialize(compiled))
+    return hashlib.sha256(data).digest() + data
+
+
+def _read_executable(data: bytes) -> jax.stages.Compiled:
+    """The executable of a file of :func:`_executable_bytes`, loaded on the default device; a
+    file whose digest does not match (damaged) raises before any byte is unpickled."""
+    digest, data = data[:32], data[32:]
+    if hashlib.sha256(data).digest() != digest:
+        raise ValueError("a damaged stored executable")
+    payload, in_tree, out_tree = pickle.loads(data)
+    return serialize_executable.deserialize_and_load(
+        payload, in_tree, out_tree, execution_devices=jax.devices()[:1])
+
+
+def _runs_here(leaves: Sequence, device) -> bool:
+    """Whether a stored executable can take these leaves: no tracer among them, and every
+    array on ``device`` (NumPy arrays and Python numbers go to the default device)."""
+    return all(not isinstance(leaf, jax.core.Tracer) and
+               (not isinstance(leaf, jax.Array) or leaf.devices() == {device})
+               for leaf in leaves)
+
+
 class StoredGraph:
-    """``jax.jit(fn, static_argnames=...)`` for one call signature, its trace read from (or
-    written to) ``folder``.
+    """``jax.jit(fn, static_argnames=...)`` for one call signature, its trace and its executable
+    read from (or written to) ``folder``.
 
     Parameters
     ----------
@@ -122,29 +192,45 @@ class StoredGraph:
     Attributes
     ----------
     loaded : bool
-        The trace was read from ``folder`` (not traced in this process).
+        The executable or the trace was read from ``folder`` (nothing traced in this process).
+    executable_loaded : bool
+        The executable was read from ``folder`` (nothing lowered or compiled either).
     """
 
     def __init__(self, fn: Callable, args: tuple, kwargs: dict, *, static: Sequence[str],
                  folder: Path):
-        fixed = {name: kwargs[name] for name in static if name in kwargs}
+        self._fn = fn
+        self._fixed = {name: kwargs[name] for name in static if name in kwargs}
         leaves, self._treedef = self._flatten(args, kwargs, static)
         self._static = tuple(static)
-        specs = [_abstract(leaf) for leaf in leaves]
-        path = folder / graph_key(fn, self._treedef, specs, fixed)
-        exported = _load(path)
-        self.loaded = exported is not None
+        self._specs = [_abstract(leaf) for leaf in leaves]
+        self._path = folder / graph_key(fn, self._treedef, self._specs, self._fixed)
+        self._executable_path = self._path.with_name(
+            f"{self._path.stem}-{host_digest()[:16]}{_EXECUTABLE_SUFFIX}")
+        self._device = jax.devices()[0]
+        self._call = None
+        self._compiled = _load(self._executable_path, _read_executable)
+        self.executable_loaded = self._compiled is not None
+        self.loaded = self.executable_loaded or self._traced()[1]
+
+    def _traced(self) -> tuple[Callable, bool]:
+        """The jitted call of the stored trace (read, or traced here and stored) and whether
+        it was read; made once."""
+        if self._call is not None:
+            return self._call, True
+        exported = _load(self._path, _read_graph)
+        read = exported is not None
         if exported is None:
-            treedef = self._treedef
+            treedef, fixed, fn = self._treedef, self._fixed, self._fn
 
             def flat(*values):
                 traced_args, traced_kwargs = jax.tree_util.tree_unflatten(treedef, values)
                 return fn(*traced_args, **traced_kwargs, **fixed)
 
             flat.__name__ = fn.__name__
-            exported = jax.export.export(jax.jit(flat))(*specs)
+            exported = jax.export.export(jax.jit(flat))(*self._specs)
             try:
-                _write_atomically(path, bytes(exported.serialize()))
+                _write_atomically(self._path, bytes(exported.serialize()))
             except (ImportError, ValueError, OSError):
                 pass  # flatbuffers missing, an output without a serialized name, a full disk
         call = exported.call
@@ -152,8 +238,33 @@ class StoredGraph:
         def named(*values):  # XLA's cache names the entry after the function: jit_<name>-...
             return call(*values)
 
-        named.__name__ = fn.__name__
+        named.__name__ = self._fn.__name__
         self._call = jax.jit(named)
+        return self._call, read
+
+    def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
+        """The compiled graph: kept, else read from ``folder``, else lowered and compiled
+        (through XLA's persistent cache) and stored."""
+        if self._compiled is None:
+            self._compiled = _load(self._executable_path, _read_executable)
+        if self._compiled is None:
+            self.keep(self._traced()[0].lower(*leaves).compile())
+        return self._compiled
+
+    def keep(self, compiled: jax.stages.Compiled) -> None:
+        """Make ``compiled`` (of :meth:`lower`'s ``compile()``) the signature's executable, and
+        store it in ``folder`` (nothing stored where the backend cannot serialize it or the
+        disk refuses: it is compiled again in the next process)."""
+        self._compiled = compiled
+        try:
+            _write_atomically(self._executable_path, _executable_bytes(compiled))
+        except (ValueError, TypeError, NotImplementedError, pickle.PicklingError, OSError):
+            pass
+
+    def compiled(self, *args, **kwargs) -> jax.stages.Compiled:
+        """The executable of a call (kept, read from ``folder``, or compiled and stored); it
+        takes :meth:`flat`'s leaves."""
+        return self._executable(self.flat(*args, **kwargs))
 
     @staticmethod
     def _flatten(args: tuple, kwargs: dict, static: Sequence[str]):
@@ -168,13 +279,18 @@ class StoredGraph:
         return leaves
 
     def lower(self, *args, **kwargs):
-        """``jax.stages.Lowered`` of a call (its ``compile()`` takes :meth:`flat`'s leaves):
-        for timing the phases of a first call."""
-        return self._call.lower(*self.flat(*args, **kwargs))
+        """``jax.stages.Lowered`` of a call through the stored trace (its ``compile()`` takes
+        :meth:`flat`'s leaves): for timing the phases of a first call."""
+        return self._traced()[0].lower(*self.flat(*args, **kwargs))
 
     def __call__(self, *args, **kwargs):
-        return self._call(*self.flat(*args, **kwargs))
+        leaves = self.flat(*args, **kwargs)
+        if _runs_here(leaves, self._device):
+            return self._executable(leaves)(*leaves)
+        return self._traced()[0](*leaves)
 
     def clear_cache(self) -> None:
         """Drop the compiled executable (as ``jax.jit``'s ``clear_cache``)."""
-        self._call.clear_cache()
+        self._compiled = None
+        if self._call is not None:
+            self._call.clear_cache()

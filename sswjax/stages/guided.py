@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from sswjax._checks import check_guide, check_map, check_positive, check_positive_int
 from sswjax.stages.baselines import box_mean, channels_first
@@ -20,14 +21,15 @@ from sswjax.stages.baselines import box_mean, channels_first
 __all__ = ["guided_filter", "guided_filter_fn", "iterated_guided_filter"]
 
 
-# Orthonormal opponent colour basis: intensity (R+G+B)/sqrt(3) and two chroma differences.
-_OPPONENT_BASIS = jnp.array(
+# Orthonormal opponent colour basis: intensity (R+G+B)/sqrt(3) and two chroma differences. A
+# NumPy constant: a JAX array here would start the backend when the package is imported.
+_OPPONENT_BASIS = np.array(
     [
         [3**-0.5, 3**-0.5, 3**-0.5],
         [2**-0.5, -(2**-0.5), 0.0],
         [6**-0.5, 6**-0.5, -2 * 6**-0.5],
     ],
-    jnp.float32,
+    np.float32,
 )
 
 
