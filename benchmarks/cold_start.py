@@ -46,7 +46,7 @@ from sswjax.api.images import prepare_pair
 from sswjax.data.io import read_image
 from sswjax.graph import ssw_disparity
 from sswjax.runtime.compilation import enable_compilation_cache
-from sswjax.runtime.stored import StoredGraph, graph_folder
+from sswjax.runtime.stored import StoredGraph, compile_lowered, graph_folder
 times = {"import": time.perf_counter() - start}
 enable_compilation_cache(path=sys.argv[4])
 t = time.perf_counter()
@@ -66,9 +66,9 @@ else:
     lowered = graph.lower(left, right, params, ndisp=ndisp)
     times["lower"] = time.perf_counter() - t
     t = time.perf_counter()
-    compiled = lowered.compile()
+    compiled, fresh = compile_lowered(lowered)
     times["compile"] = time.perf_counter() - t
-    graph.keep(compiled)
+    graph.keep(compiled, fresh=fresh)
 leaves = graph.flat(left, right, params, ndisp=ndisp)
 t = time.perf_counter()
 np.asarray(compiled(*leaves))

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jax._src import compilation_cache as jax_compilation_cache
 
 import sswjax
 from sswjax.graph import ssw_disparity, ssw_outputs
@@ -21,6 +22,14 @@ from sswjax.runtime.stored import StoredGraph, graph_key, host_digest, source_di
 _STATIC = ("ndisp", "chunk", "measure")
 # The paper's method without segments and smoothing: the quickest graph to compile here.
 _PARAMS = sswjax.preset("paper").replace(segments=None, smoothing=None)
+
+
+@pytest.fixture(autouse=True)
+def _xla_compiles_here(monkeypatch):
+    """XLA's persistent cache off in this process (whether an earlier test of the worker turned
+    it on or not): an executable read from it is not stored, and these tests store. The command
+    line tests below run with the cache, in their own processes."""
+    monkeypatch.setattr(jax_compilation_cache, "is_cache_used", lambda backend: False)
 
 
 @pytest.fixture(scope="module")
@@ -152,6 +161,43 @@ def test_a_warmed_shape_is_matched_without_tracing_or_compiling(small_pair, tmp_
                  tmp_path / "plain.pfm", cache=tmp_path / "unused")
     assert plain.returncode == 0, plain.stderr
     assert (tmp_path / "d.pfm").read_bytes() == (tmp_path / "plain.pfm").read_bytes()
+
+
+_STORING_EVERYTHING = """
+import sys
+import sswjax.runtime.stored as stored
+from sswjax.cli.app import main
+# what a process that did not tell XLA's cache from a fresh compile would store
+stored.compile_lowered = lambda lowered: (lowered.compile(), True)
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_only_fresh_executables_are_stored_and_a_broken_one_is_replaced(small_pair, tmp_path):
+    cache, files = tmp_path / "cache", small_pair.folder
+    pair = (files / "left_gray.png", files / "right_gray.png")
+    command = ["match", *pair, "--ndisp", 8, *_QUICK, "-o"]
+
+    def matched(name, *, python=None):
+        out = tmp_path / f"{name}.pfm"
+        if python is None:
+            done = _cli(*command, out, cache=cache)
+        else:
+            env = dict(os.environ, SSWJAX_CACHE_DIR=str(cache))
+            done = subprocess.run([sys.executable, "-c", python, *map(str, command), str(out)],
+                                  env=env, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return out.read_bytes()
+
+    first = matched("first")  # compiled here: stored
+    (executable,) = cache.glob("graphs/*.xlaexec")
+    executable.unlink()
+    assert matched("second") == first  # from XLA's cache: not stored
+    assert not list(cache.glob("graphs/*.xlaexec"))
+    assert matched("third", python=_STORING_EVERYTHING) == first
+    assert list(cache.glob("graphs/*.xlaexec")) == [executable]  # what the cache hit gave
+    assert matched("fourth") == first  # it fails to run: removed, the trace runs instead
+    assert not executable.exists()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -10,13 +10,16 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   finds it deserializes it and lowers a call to it (a fraction of the trace); XLA's cache then
   gives the executable;
 - the compiled executable itself (``.xlaexec``, :mod:`jax.experimental.serialize_executable`),
-  keyed further by the host (:func:`host_digest`: the backend and its version, the devices,
-  ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA compiles for): a process
-  that finds it loads it directly, and skips the lowering as well (0.25 s of ``accurate``'s
-  first call on a trainingQ pair). It is used for calls on concrete arrays of the default
-  device; a call under a transformation (a tracer among the arguments) or with arrays on
-  another device goes through the lowered program as above. The file is a pickle that loads
-  machine code: like XLA's own cache, the folder must be one only trusted users write to.
+  written by the process in which XLA compiled it (not read it from XLA's cache:
+  :func:`compile_lowered`), keyed further by the host (:func:`host_digest`: the backend and
+  its version, the devices, ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA
+  compiles for): a process that finds it loads it directly, and skips the lowering as well
+  (0.25 s of ``accurate``'s first call on a trainingQ pair). It is used for calls on concrete
+  arrays of the default device; a call under a transformation (a tracer among the arguments)
+  or with arrays on another device goes through the lowered program as above. The first run
+  of a loaded executable waits for its result, so that one that fails to run is removed and
+  the call goes through the lowered program. The file is a pickle that loads machine code:
+  like XLA's own cache, the folder must be one only trusted users write to.
 
 A stored graph is keyed by everything that decides its trace (:func:`graph_key`): the sswjax
 source (a digest of every module of the package, so an edited checkout never reads a graph of
@@ -47,7 +50,8 @@ import jax
 import jaxlib
 from jax.experimental import serialize_executable
 
-__all__ = ["StoredGraph", "graph_folder", "graph_key", "host_digest", "source_digest"]
+__all__ = ["StoredGraph", "compile_lowered", "graph_folder", "graph_key", "host_digest",
+           "source_digest"]
 
 _SUFFIX = ".jaxexport"
 _EXECUTABLE_SUFFIX = ".xlaexec"
@@ -166,6 +170,26 @@ def _read_executable(data: bytes) -> jax.stages.Compiled:
         payload, in_tree, out_tree, execution_devices=jax.devices()[:1])
 
 
+def compile_lowered(lowered: jax.stages.Lowered) -> tuple[jax.stages.Compiled, bool]:
+    """``lowered.compile()``, and whether XLA compiled it in this call: False when it came from
+    XLA's persistent cache (the ``/jax/compilation_cache/cache_hits`` event of
+    :mod:`jax.monitoring`, listened to during the call only). On jaxlib 0.10.2 an executable
+    read from that cache serializes without some of its fused functions, and running what it
+    serialized to fails (``NOT_FOUND: Function ... not found``); a fresh one is whole."""
+    hits = []
+
+    def listen(event: str, **_) -> None:
+        if event == "/jax/compilation_cache/cache_hits":
+            hits.append(event)
+
+    jax.monitoring.register_event_listener(listen)
+    try:
+        compiled = lowered.compile()
+    finally:
+        jax.monitoring.unregister_event_listener(listen)
+    return compiled, not hits
+
+
 def _runs_here(leaves: Sequence, device) -> bool:
     """Whether a stored executable can take these leaves: no tracer among them, and every
     array on ``device`` (NumPy arrays and Python numbers go to the default device)."""
@@ -210,6 +234,7 @@ class StoredGraph:
         self._device = jax.devices()[0]
         self._call = None
         self._compiled = _load(self._executable_path, _read_executable)
+        self._unproven = self._compiled is not None  # read, not yet run
         self.executable_loaded = self._compiled is not None
         self.loaded = self.executable_loaded or self._traced()[1]
 
@@ -244,18 +269,24 @@ class StoredGraph:
 
     def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
         """The compiled graph: kept, else read from ``folder``, else lowered and compiled
-        (through XLA's persistent cache) and stored."""
+        (through XLA's persistent cache) and stored when XLA compiled it here."""
         if self._compiled is None:
             self._compiled = _load(self._executable_path, _read_executable)
+            self._unproven = self._compiled is not None
         if self._compiled is None:
-            self.keep(self._traced()[0].lower(*leaves).compile())
+            compiled, fresh = compile_lowered(self._traced()[0].lower(*leaves))
+            self.keep(compiled, fresh=fresh)
         return self._compiled
 
-    def keep(self, compiled: jax.stages.Compiled) -> None:
-        """Make ``compiled`` (of :meth:`lower`'s ``compile()``) the signature's executable, and
-        store it in ``folder`` (nothing stored where the backend cannot serialize it or the
-        disk refuses: it is compiled again in the next process)."""
-        self._compiled = compiled
+    def keep(self, compiled: jax.stages.Compiled, *, fresh: bool) -> None:
+        """Make ``compiled`` (of :meth:`lower`, through :func:`compile_lowered`) the signature's
+        executable, and store it in ``folder`` if ``fresh`` (compiled by XLA in this process:
+        one read from XLA's persistent cache serializes without some of its functions). Nothing
+        is stored where the backend cannot serialize it or the disk refuses: it is compiled
+        again in the next process."""
+        self._compiled, self._unproven = compiled, False
+        if not fresh:
+            return
         try:
             _write_atomically(self._executable_path, _executable_bytes(compiled))
         except (ValueError, TypeError, NotImplementedError, pickle.PicklingError, OSError):
@@ -285,9 +316,21 @@ class StoredGraph:
 
     def __call__(self, *args, **kwargs):
         leaves = self.flat(*args, **kwargs)
-        if _runs_here(leaves, self._device):
-            return self._executable(leaves)(*leaves)
-        return self._traced()[0](*leaves)
+        if not _runs_here(leaves, self._device):
+            return self._traced()[0](*leaves)
+        compiled = self._executable(leaves)
+        if not self._unproven:
+            return compiled(*leaves)
+        # The first run of an executable read from a file waits for its result: one that
+        # lacks a function fails there (XLA's NOT_FOUND), and is then removed and replaced by
+        # the trace's; any other error is raised again by that second run.
+        self._unproven = False
+        try:
+            return jax.block_until_ready(compiled(*leaves))
+        except jax.errors.JaxRuntimeError:
+            self._compiled = None
+            self._executable_path.unlink(missing_ok=True)
+            return self._traced()[0](*leaves)
 
     def clear_cache(self) -> None:
         """Drop the compiled executable (as ``jax.jit``'s ``clear_cache``)."""
