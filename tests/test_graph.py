@@ -387,3 +387,19 @@ def test_a_band_as_wide_as_the_range_is_the_method_without_it(pair):
     assert np.isfinite(banded).all() and banded.min() >= 0 and banded.max() <= NDISP - 1
     inner = banded[:, SHIFT + MARGIN:]
     assert np.abs(inner - SHIFT).max() <= 0.5
+
+
+def test_a_band_without_paths_is_the_method_without_an_optimizer(pair):
+    """``band.paths=False``: the band's winners come from its (aggregated) cost; as wide as the
+    range, after a coarse pass that keeps its paths, it is the full-range method without an
+    optimizer, exactly."""
+    left, right = map(jnp.asarray, pair)
+    full = sswjax.preset("accurate").replace(smoothing=None)
+    reference = np.asarray(ssw_disparity(left, right, full.replace(optimizer=None), ndisp=NDISP))
+    banded = full.replace(coarse=sswjax.config.CoarseToFine(levels=1),
+                          band=sswjax.config.DisparityBand(width=NDISP, paths=False))
+    np.testing.assert_array_equal(np.asarray(ssw_disparity(left, right, banded, ndisp=NDISP)),
+                                  reference)
+    with_paths = banded.replace(band=banded.band.replace(paths=True))
+    assert not np.array_equal(np.asarray(ssw_disparity(left, right, with_paths, ndisp=NDISP)),
+                              reference)

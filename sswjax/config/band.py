@@ -31,6 +31,9 @@ class DisparityBand(Part):
     aggregate: bool = option(True, static=True, help="aggregate the band's cost with the "
                              "aggregation stage, plane by plane (each plane follows the "
                              "estimate); False: the paths read the matching cost")
+    paths: bool = option(True, static=True, help="run the optimizer's semi-global paths over "
+                         "the band; False: each pixel's winner is the band's lowest cost "
+                         "(aggregated or not), the coarse pass keeping its paths")
 
     def validate(self, params) -> None:
         """The optimiser must run over per-pixel bands."""

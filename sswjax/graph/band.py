@@ -32,10 +32,11 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
     kept inside the range; disparities at or beyond a traced ``limit`` cost
     :data:`~sswjax.graph.volume.OUT_OF_RANGE_COST`. Its cost (Eq. 5) is aggregated plane by
     plane, each plane following the estimate (``band.aggregate``), then optimised by the
-    semi-global paths in absolute disparities; the right view and the aggregated cost's right
+    semi-global paths in absolute disparities (``band.paths``); the right view and the aggregated cost's right
     view for the occlusion test are folded over the bands.
     """
-    band, optimizer = params.band, params.optimizer
+    band = params.band
+    optimizer = params.optimizer if band.paths else None
     width = min(band.width, ndisp)
     # Written once: each reader of the band (the cost's gathers, the paths' alignment, both
     # right views) would otherwise recompute the estimate (the coarse map's upsampling) for
