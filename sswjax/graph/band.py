@@ -32,8 +32,8 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
     kept inside the range; disparities at or beyond a traced ``limit`` cost
     :data:`~sswjax.graph.volume.OUT_OF_RANGE_COST`. Its cost (Eq. 5) is aggregated plane by
     plane, each plane following the estimate (``band.aggregate``), then optimised by the
-    semi-global paths in absolute disparities (``band.paths``); the right view and the aggregated cost's right
-    view for the occlusion test are folded over the bands.
+    semi-global paths in absolute disparities (unless ``band.paths`` is False); the right view
+    and the aggregated cost's right view for the occlusion test are folded over the bands.
     """
     band = params.band
     optimizer = params.optimizer if band.paths else None

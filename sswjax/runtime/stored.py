@@ -232,19 +232,25 @@ class StoredGraph:
         self._executable_path = self._path.with_name(
             f"{self._path.stem}-{host_digest()[:16]}{_EXECUTABLE_SUFFIX}")
         self._device = jax.devices()[0]
-        self._call = None
-        self._compiled = _load(self._executable_path, _read_executable)
-        self._unproven = self._compiled is not None  # read, not yet run
-        self.executable_loaded = self._compiled is not None
-        self.loaded = self.executable_loaded or self._traced()[1]
+        self._call, self._compiled, self._trace_read = None, None, False
+        self.executable_loaded = self._read_executable()
+        if not self.executable_loaded:
+            self._traced()
+        self.loaded = self.executable_loaded or self._trace_read
 
-    def _traced(self) -> tuple[Callable, bool]:
-        """The jitted call of the stored trace (read, or traced here and stored) and whether
-        it was read; made once."""
+    def _read_executable(self) -> bool:
+        """Take the stored executable, if there is a readable one; it is unproven until its
+        first run (:meth:`__call__`)."""
+        self._compiled = _load(self._executable_path, _read_executable)
+        self._unproven = self._compiled is not None
+        return self._unproven
+
+    def _traced(self) -> Callable:
+        """The jitted call of the stored trace (read, or traced here and stored), made once."""
         if self._call is not None:
-            return self._call, True
+            return self._call
         exported = _load(self._path, _read_graph)
-        read = exported is not None
+        self._trace_read = exported is not None
         if exported is None:
             treedef, fixed, fn = self._treedef, self._fixed, self._fn
 
@@ -265,16 +271,13 @@ class StoredGraph:
 
         named.__name__ = self._fn.__name__
         self._call = jax.jit(named)
-        return self._call, read
+        return self._call
 
     def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
         """The compiled graph: kept, else read from ``folder``, else lowered and compiled
         (through XLA's persistent cache) and stored when XLA compiled it here."""
-        if self._compiled is None:
-            self._compiled = _load(self._executable_path, _read_executable)
-            self._unproven = self._compiled is not None
-        if self._compiled is None:
-            compiled, fresh = compile_lowered(self._traced()[0].lower(*leaves))
+        if self._compiled is None and not self._read_executable():
+            compiled, fresh = compile_lowered(self._traced().lower(*leaves))
             self.keep(compiled, fresh=fresh)
         return self._compiled
 
@@ -312,12 +315,12 @@ class StoredGraph:
     def lower(self, *args, **kwargs):
         """``jax.stages.Lowered`` of a call through the stored trace (its ``compile()`` takes
         :meth:`flat`'s leaves): for timing the phases of a first call."""
-        return self._traced()[0].lower(*self.flat(*args, **kwargs))
+        return self._traced().lower(*self.flat(*args, **kwargs))
 
     def __call__(self, *args, **kwargs):
         leaves = self.flat(*args, **kwargs)
         if not _runs_here(leaves, self._device):
-            return self._traced()[0](*leaves)
+            return self._traced()(*leaves)
         compiled = self._executable(leaves)
         if not self._unproven:
             return compiled(*leaves)
@@ -330,7 +333,7 @@ class StoredGraph:
         except jax.errors.JaxRuntimeError:
             self._compiled = None
             self._executable_path.unlink(missing_ok=True)
-            return self._traced()[0](*leaves)
+            return self._traced()(*leaves)
 
     def clear_cache(self) -> None:
         """Drop the compiled executable (as ``jax.jit``'s ``clear_cache``)."""
