@@ -25,13 +25,18 @@ from typing import NamedTuple
 from sswjax.config.fields import ConfigError, as_float, check_value, default_of, option_fields
 from sswjax.config.parts import SLOTS, kinds
 
-__all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "NEWER_SLOTS",
+__all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "NEWER_OPTIONS",
+           "NEWER_SLOTS",
            "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names",
            "to_flat", "translate", "unused_error"]
 
 NEWER_SLOTS = ("band", "smoothing")
 """Stages added after the flat names: a flat file describes a configuration without them (they
 are off), and a change by flat names keeps them as they are."""
+
+NEWER_OPTIONS = (("selection", "fit"),)
+"""Options added after the flat names to stages that have them, as ``(slot, option)``: a flat
+file describes them at their defaults, and a change by flat names keeps them as they are."""
 
 STATIC_DEFAULTS: dict = {
     "census_height": 7, "census_width": 9, "n_segments": 2000, "slic_iterations": 10,
@@ -298,6 +303,8 @@ def to_flat(slots: Mapping) -> dict:
             name = names.get((slot, field))
             if (slot, field) == ("coarse", "median_iterations"):
                 continue  # below: it shares refine_iterations with the refinement
+            if (slot, field) in NEWER_OPTIONS:
+                continue  # no flat name: a change by flat names keeps it (Params.replace)
             if field in _FIXED.get((slot, config.kind), ()) or name is None:
                 if value != default_of(config, field):
                     raise ConfigError(f"{slot}.{field}", f"parameter {slot}.{field} has no flat "

@@ -21,8 +21,8 @@ from sswjax.config.band import DisparityBand
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
-from sswjax.config.legacy import (EXECUTION_DEFAULTS, NEWER_SLOTS, from_flat, old_names, to_flat,
-                                  translate, unused_error)
+from sswjax.config.legacy import (EXECUTION_DEFAULTS, NEWER_OPTIONS, NEWER_SLOTS, from_flat,
+                                  old_names, to_flat, translate, unused_error)
 from sswjax.config.optimizer import Optimizer
 from sswjax.config.parts import SLOTS, kinds
 from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
@@ -126,7 +126,12 @@ def _replace_flat(params: Params, flat: Mapping) -> Params:
         raise translate(error) from None
     if reading.unused:
         raise unused_error(reading.unused)
-    return Params(**{**reading.slots, **newer})
+    slots = {**reading.slots, **newer}
+    for slot, field in NEWER_OPTIONS:  # kept where the stage kept its kind
+        before, after = getattr(params, slot), slots[slot]
+        if before is not None and after is not None and before.kind == after.kind:
+            slots[slot] = after.replace(**{field: getattr(before, field)})
+    return Params(**slots)
 
 
 def _slot_value(params: Params, slot: str, value):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from sswjax.config.fields import ConfigError, is_set, option
 from sswjax.config.parts import Part, register
+from sswjax.stages.selection import SUBPIXEL_FITS
 
 __all__ = ["LeftRightCheck", "WinnerTakesAll"]
 
@@ -19,8 +20,11 @@ class WinnerTakesAll(Part):
     (Eq. 8)."""
 
     subpixel: bool = option(True, static=True,
-                            help="fit a parabola through the costs around the winner (Eq. 8 "
+                            help="fit a curve through the costs around the winner (Eq. 8 "
                                  "refined)")
+    fit: str = option("parabola", static=True, choices=tuple(SUBPIXEL_FITS),
+                      help="the curve of the sub-pixel fit: a parabola (Eq. 8) or two lines "
+                           "of opposite slopes (equiangular)")
 
 
 @register("checks", "lr")

@@ -17,7 +17,7 @@ from sswjax.stages.baselines import box_filter
 from sswjax.stages.confidence import ConfidenceCues
 from sswjax.stages.medians import side_window_median_filter
 from sswjax.stages.refinement import left_right_distance, uniqueness_violations
-from sswjax.stages.selection import parabola_refine
+from sswjax.stages.selection import SUBPIXEL_FITS
 
 __all__ = ["refine"]
 
@@ -74,7 +74,8 @@ def refine(selected: Selected, scene: Scene, params: Params, limit
         if params.selection.subpixel:
             before, centre, after = selected.parabola or (winners.before, winners.cost,
                                                           winners.after)
-            disparity = parabola_refine(winners.disparity, before, centre, after, ndisp=limit)
+            fit = SUBPIXEL_FITS[params.selection.fit]
+            disparity = fit(winners.disparity, before, centre, after, ndisp=limit)
         else:
             disparity = winners.disparity.astype(jnp.float32)
     initial = disparity

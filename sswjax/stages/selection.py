@@ -194,6 +194,28 @@ def parabola_refine(disparity, before, centre, after, *, ndisp: int) -> jax.Arra
     return disparity.astype(jnp.float32) + jnp.clip(offset, -0.5, 0.5)
 
 
+def equiangular_refine(disparity, before, centre, after, *, ndisp: int) -> jax.Array:
+    """Sub-pixel disparity from two lines of opposite slopes through the three costs.
+
+    Equiangular line fitting (Shimizu and Okutomi, "Sub-pixel estimation error cancellation on
+    area-based matching", IJCV 2005, Eq. 9): the steeper of the two sides gives the slope, and
+    the offset is ``(before - after) / (2 (max(before, after) - centre))``. It suits costs that
+    grow like ``|d - d*|`` near their minimum (absolute differences, Hamming distances, and the
+    semi-global sums whose ``P1`` penalty is linear), on which the parabola of
+    :func:`parabola_refine` pulls the offsets towards 0. Arguments and result as there: the
+    int32 (H, W) winners, the float32 (H, W) costs at ``d - 1``, ``d`` and ``d + 1``, the
+    range's size (winners at its ends are not moved); float32 (H, W).
+    """
+    check_rank("disparity", disparity, 2)
+    rise = jnp.maximum(before, after) - centre
+    inside = (disparity > 0) & (disparity < ndisp - 1) & (rise > 0)
+    offset = jnp.where(inside, (before - after) / (2 * jnp.where(inside, rise, 1.0)), 0.0)
+    return disparity.astype(jnp.float32) + jnp.clip(offset, -0.5, 0.5)
+
+
+SUBPIXEL_FITS = {"parabola": parabola_refine, "equiangular": equiangular_refine}
+
+
 def soft_argmin(cost: jax.Array, *, temperature) -> jax.Array:
     """Differentiable WTA: ``sum_d d * softmax(-cost / temperature)[d]`` (Kendall et al. 2017).
 

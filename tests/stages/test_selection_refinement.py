@@ -7,7 +7,7 @@ import pytest
 from sswjax.stages.reference import (left_right_consistency, right_cost_volume, subpixel_parabola,
                                      winner_takes_all)
 from sswjax.stages.refinement import fill_background, fill_invalid, uniqueness_violations
-from sswjax.stages.selection import fold_winners, no_winners, soft_argmin
+from sswjax.stages.selection import equiangular_refine, fold_winners, no_winners, soft_argmin
 
 # ---------------------------------------------------------------------------------------------
 # selection
@@ -115,6 +115,43 @@ def test_subpixel_parabola_asymmetric_v():
     cost = np.array([2.0, 0.0, 1.0])[:, None, None].astype(np.float32)
     ours = subpixel_parabola(jnp.asarray(cost), winner_takes_all(jnp.asarray(cost)))
     np.testing.assert_allclose(np.asarray(ours), [[1 + 1 / 6]], atol=1e-6)
+
+
+def test_equiangular_fit_exact_on_sampled_v_and_against_a_loop():
+    rng = np.random.default_rng(3)
+    ndisp, h, w = 9, 5, 6
+    t0 = rng.uniform(0.6, ndisp - 1.6, size=(h, w))  # the V's vertex, away from the ends
+    t0[0, 0] = 3.0  # on a sample
+    slope = rng.uniform(0.5, 3.0, size=(h, w))
+    d = np.arange(ndisp)[:, None, None]
+    cost = (slope * np.abs(d - t0) + rng.uniform(-1, 1, size=(h, w))).astype(np.float32)
+    winners = winner_takes_all(jnp.asarray(cost))
+
+    def costs(cost, winners):
+        """The costs at the winners' d - 1, d and d + 1 (clipped to the range)."""
+        return [jnp.take_along_axis(jnp.asarray(cost), jnp.clip(
+            winners + offset, 0, cost.shape[0] - 1)[None], axis=0)[0] for offset in (-1, 0, 1)]
+
+    ours = np.asarray(equiangular_refine(winners, *costs(cost, winners), ndisp=ndisp))
+    assert ours.dtype == np.float32
+    np.testing.assert_allclose(ours, t0, atol=2e-4, rtol=0)
+    # the parabola on the same V is pulled towards the integers
+    parabola = np.asarray(subpixel_parabola(jnp.asarray(cost), winners))
+    assert np.abs(parabola - t0).max() > 0.05
+
+    # a loop reference on random costs, the range's ends and flat sides included
+    cost = rng.integers(0, 4, size=(5, 4, 7)).astype(np.float32)
+    winners = winner_takes_all(jnp.asarray(cost))
+    ours = np.asarray(equiangular_refine(winners, *costs(cost, winners), ndisp=5))
+    for y in range(4):
+        for x in range(7):
+            k = int(winners[y, x])
+            c = cost[:, y, x]
+            expected = float(k)
+            if 0 < k < 4 and max(c[k - 1], c[k + 1]) > c[k]:
+                offset = (c[k - 1] - c[k + 1]) / (2 * (max(c[k - 1], c[k + 1]) - c[k]))
+                expected = k + min(max(offset, -0.5), 0.5)
+            assert ours[y, x] == pytest.approx(expected, abs=1e-6), (y, x)
 
 
 def test_soft_argmin_tends_to_wta():
