@@ -4,8 +4,9 @@ import pytest
 
 from sswjax import ConfigError, Params, preset
 from sswjax.config import PRESETS, kinds
-from sswjax.config.legacy import (EXECUTION_DEFAULTS, FLAT_DEFAULTS, NEWER_SLOTS, from_flat,
-                                  old_names, to_flat)
+from sswjax.config.fields import default_of
+from sswjax.config.legacy import (EXECUTION_DEFAULTS, FLAT_DEFAULTS, NEWER_OPTIONS, NEWER_SLOTS,
+                                  from_flat, old_names, to_flat)
 
 # The presets as the flat registry wrote them (changes from Params()), before the nesting.
 _OCCLUSIONS = {"uniqueness_gap": 2, "uniqueness_radius": 2, "aggregated_lr_gap": 2,
@@ -32,8 +33,11 @@ def test_the_old_names_are_the_53_fields():
 @pytest.mark.parametrize("name", list(OLD_PRESETS))
 def test_the_old_presets_are_the_new_ones(name):
     # The presets as they were before the stages the flat names never had (NEWER_SLOTS: the
-    # band, the smoothing), which a flat file leaves off.
+    # band, the smoothing), which a flat file leaves off, and before the options it never had
+    # (NEWER_OPTIONS: the sub-pixel fit), which it leaves at their defaults.
     current = preset(name).replace(**{slot: None for slot in NEWER_SLOTS})
+    current = current.replace(**{slot: {field: default_of(getattr(current, slot), field)}
+                                 for slot, field in NEWER_OPTIONS})
     reading = from_flat(OLD_PRESETS[name])
     assert Params(**reading.slots) == current
     slots = dict(current.stages())
@@ -47,6 +51,20 @@ def test_the_old_presets_are_the_new_ones(name):
     assert set(reading.unused) == ({"fill_radius", "fill_median"} if name == "finest" else set())
     # balanced came with the band, after the flat names: it has no flat form
     assert set(PRESETS) - {"balanced"} == set(OLD_PRESETS)
+
+
+def test_a_change_by_flat_names_keeps_the_newer_options():
+    accurate = preset("accurate")
+    assert accurate.selection.fit == "equiangular"
+    changed = accurate.replace(lr_check=False, sgm_p1=0.3)
+    assert changed.selection.fit == "equiangular" and changed.checks is None
+    assert changed.optimizer.p1 == pytest.approx(0.3)
+    assert Params().replace(subpixel=False).selection.fit == "parabola"
+    # the flat form leaves them out, whatever they are
+    slots = dict(accurate.stages())
+    for slot in NEWER_SLOTS:
+        del slots[slot]
+    assert to_flat(slots)["subpixel"] is True and "fit" not in to_flat(slots)
 
 
 def test_switches_choose_the_stages():
