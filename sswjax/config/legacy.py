@@ -26,9 +26,8 @@ from sswjax.config.fields import ConfigError, as_float, check_value, default_of,
 from sswjax.config.parts import SLOTS, kinds
 
 __all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "NEWER_OPTIONS",
-           "NEWER_SLOTS",
-           "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names",
-           "to_flat", "translate", "unused_error"]
+           "NEWER_SLOTS", "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names", "to_flat",
+           "translate", "unused_error"]
 
 NEWER_SLOTS = ("band", "smoothing")
 """Stages added after the flat names: a flat file describes a configuration without them (they

@@ -16,8 +16,8 @@ __all__ = ["LeftRightCheck", "WinnerTakesAll"]
 
 @register("selection", "wta")
 class WinnerTakesAll(Part):
-    """Winner-takes-all over the (optimised) volume, with a parabola around the minimum
-    (Eq. 8)."""
+    """Winner-takes-all over the (optimised) volume, with a sub-pixel fit around the minimum:
+    Eq. 8's parabola, or two lines of opposite slopes (``fit``)."""
 
     subpixel: bool = option(True, static=True,
                             help="fit a curve through the costs around the winner (Eq. 8 "
