@@ -391,6 +391,18 @@ def test_a_band_as_wide_as_the_range_is_the_method_without_it(pair):
     assert np.abs(inner - SHIFT).max() <= 0.5
 
 
+def test_a_band_over_superpixel_ranges_recovers_the_shift(pair):
+    """``band.segment_range``: the graph hands the full-resolution superpixels to the band's
+    starts (tested against loops in tests/stages/test_bands.py); a band of 3 around the
+    accurate map still recovers the shift."""
+    left, right = map(jnp.asarray, pair)
+    params = sswjax.preset("accurate").replace(
+        smoothing=None, segments=sswjax.config.Slic(n_segments=12),
+        band=sswjax.config.DisparityBand(width=3, segment_range=True))
+    banded = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP))
+    assert np.abs(banded[:, SHIFT + MARGIN:] - SHIFT).max() <= 0.5
+
+
 def test_a_band_without_paths_is_the_method_without_an_optimizer(pair):
     """``band.paths=False``: the band's winners come from its (aggregated) cost; as wide as the
     range, after a coarse pass that keeps its paths, it is the full-range method without an

@@ -28,6 +28,9 @@ class DisparityBand(Part):
                                 "band on the range of the estimates in the pixel's "
                                 "(2r + 1)^2 window where that range fits in the band "
                                 "(both sides of a depth edge); 0: on the pixel's own estimate")
+    segment_range: bool = option(False, static=True, help="centre each band on the range of "
+                                 "the estimates in the pixel's superpixel where that range fits "
+                                 "in the band (needs segments); else as spread_radius says")
     aggregate: bool = option(True, static=True, help="aggregate the band's cost with the "
                              "aggregation stage, plane by plane (each plane follows the "
                              "estimate); False: the paths read the matching cost")
@@ -35,8 +38,16 @@ class DisparityBand(Part):
                          "the band; False: each pixel's winner is the band's lowest cost "
                          "(aggregated or not), the coarse pass keeping its paths")
 
+    @property
+    def uses_segments(self) -> bool:
+        """Whether it reads the superpixels (``segment_range``)."""
+        return self.segment_range
+
     def validate(self, params) -> None:
-        """The optimiser must run over per-pixel bands."""
+        """The optimiser must run over per-pixel bands; a segment range needs superpixels."""
+        if self.segment_range and params.segments is None:
+            raise ConfigError("band.segment_range", "band.segment_range takes each band's "
+                              "range over its superpixel: it needs segments")
         if params.optimizer is not None and not params.optimizer.searches_bands:
             raise ConfigError("band", f"band: the optimizer {params.optimizer.kind!r} does not "
                               "run over per-pixel disparity bands (use 'sgm' or none)")

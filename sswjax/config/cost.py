@@ -119,12 +119,13 @@ class Slic(Part):
 
     def validate(self, params) -> None:
         """Superpixels must have a stage that uses them."""
-        users = [part for part in (params.aggregation, params.optimizer, params.fill)
+        users = [part for part in (params.aggregation, params.optimizer, params.fill,
+                                   params.band)
                  if part is not None and getattr(part, "uses_segments", False)]
         if not users:
             raise ConfigError("segments", "segments: no stage uses the superpixels (the "
-                              "segment-side-window aggregation, the semi-global optimiser or the "
-                              "plane fill); set segments to None")
+                              "segment-side-window aggregation, the semi-global optimiser, the "
+                              "plane fill or the band's segment range); set segments to None")
 
     def labels(self, left: jax.Array) -> tuple[jax.Array, int]:
         """int32 (H, W) labels of the left image and their static count."""

@@ -41,8 +41,10 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
     # Written once: each reader of the band (the cost's gathers, the paths' alignment, both
     # right views) would otherwise recompute the estimate (the coarse map's upsampling) for
     # every plane of the band.
+    segments = ({"labels": scene.labels, "num_segments": scene.num_segments}
+                if band.segment_range else {})
     starts = written_once(band_starts(estimate, width=width, limit=limit,
-                                       spread_radius=band.spread_radius))
+                                       spread_radius=band.spread_radius, **segments))
     with scope(Stage.COST):
         cost = padding_as_edge(params.cost.band(scene.features, starts, width),
                                scene.valid_shape)

@@ -30,8 +30,8 @@ from sswjax.stages.selection import Winners, fold_winners, no_winners
 __all__ = ["align_band", "band_cost", "band_deltas", "band_right_view", "band_starts", "band_winners"]
 
 
-def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 0
-                ) -> jax.Array:
+def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 0,
+                labels: jax.Array | None = None, num_segments: int = 0) -> jax.Array:
     """First disparity of each pixel's band: ``width`` disparities centred on the rounded
     estimate, moved inside ``[0, limit)`` where they would leave it.
 
@@ -43,6 +43,12 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
     and maximum, Rothermel et al. 2012, padded to a fixed width). Where the range is wider,
     the band stays on the pixel's own estimate.
 
+    With ``labels`` (superpixels) the range is taken over the pixel's superpixel instead,
+    wherever it fits in the band (else the window's range or the pixel's own estimate, as
+    above): a superpixel follows the image's edges, so its range is the support the segment
+    gives the band (issue 25's "per-segment ranges"; the paper's segments, Eq. 6, used here
+    for the search range rather than the cost).
+
     Parameters
     ----------
     estimate : float32 (H, W)
@@ -53,6 +59,10 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
         The search range ``0 .. limit - 1``; with ``limit < width`` every band starts at 0.
     spread_radius : int >= 0
         ``r``; 0 centres every band on its own estimate. Borders are edge-replicated.
+    labels : int32 (H, W), optional
+        Superpixel labels in ``[0, num_segments)``.
+    num_segments : int
+        Their static count (with ``labels``).
 
     Returns
     -------
@@ -67,6 +77,9 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
     >>> band_starts(edge, width=7, limit=20).tolist(), band_starts(
     ...     edge, width=7, limit=20, spread_radius=1).tolist()
     ([[0, 0, 3, 3]], [[0, 1, 1, 3]])
+    >>> band_starts(edge, width=7, limit=20, labels=jnp.array([[0, 0, 1, 1]]),
+    ...             num_segments=2).tolist()          # each side's superpixel: its own range
+    [[0, 0, 3, 3]]
     """
     check_rank("estimate", estimate, 2)
     check_positive_int("width", width)
@@ -80,10 +93,20 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
                                 "VALID")
         high = lax.reduce_window(padded, jnp.iinfo(jnp.int32).min, lax.max, window, (1, 1),
                                  "VALID")
-        # The range [low, high] centred in the band: (width - 1 - (high - low)) // 2 to spare
-        # below it, the rest above.
-        start = jnp.where(high - low < width, low - (width - 1 - (high - low)) // 2, start)
+        start = _centred_on_range(start, low, high, width)
+    if labels is not None:
+        check_same_shape("labels", labels, "estimate", estimate)
+        flat = labels.reshape(-1)
+        low = jax.ops.segment_min(rounded.reshape(-1), flat, num_segments=num_segments)
+        high = jax.ops.segment_max(rounded.reshape(-1), flat, num_segments=num_segments)
+        start = _centred_on_range(start, low[labels], high[labels], width)
     return jnp.maximum(jnp.minimum(start, limit - width), 0).astype(jnp.int32)
+
+
+def _centred_on_range(start, low, high, width: int):
+    """``start``, or where ``[low, high]`` fits in the band the start that centres it:
+    ``(width - 1 - (high - low)) // 2`` to spare below the range, the rest above."""
+    return jnp.where(high - low < width, low - (width - 1 - (high - low)) // 2, start)
 
 
 def band_cost(features: MatchingFeatures, starts: jax.Array, *, width: int, **terms) -> jax.Array:

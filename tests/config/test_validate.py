@@ -60,6 +60,8 @@ def test_numpy_and_jax_scalars_are_numbers():
      "aggregation.segment_weight acts only with superpixels"),
     (preset("accurate").replace(**{"optimizer.segment_factor": 0.5}),
      "optimizer.segment_factor acts only with superpixels"),
+    (preset("balanced").replace(**{"band.segment_range": True}),
+     "band.segment_range takes each band's range over its superpixel: it needs segments"),
     (Params().replace(**{"checks.aggregated_gap": 2}), "checks.aggregated_gap needs an optimizer"),
     (Params().replace(**{"checks.uniqueness_radius": 3}), "uniqueness_radius acts only with"),
     (Params().replace(**{"fill.median_radius": 7}), "fill.median_radius must be in [0, 5] with "

@@ -43,6 +43,30 @@ def test_band_starts_around_the_spread_by_loops():
             assert ours[y, x] == min(max(start, 0), limit - width)
 
 
+def test_band_starts_over_the_superpixel_by_loops():
+    rng = np.random.default_rng(5)
+    estimate = (rng.random((8, 10)) * 6).astype(np.float32)
+    estimate[:, 6:] += 25.0
+    labels = np.repeat(np.arange(5)[None], 8, 0).repeat(2, 1)  # 2-column segments
+    labels[5:, :] += 5                                          # and a lower row of them
+    estimate[5:, 2:4] = np.array([0.0, 30.0])                   # one segment too wide to fit
+    width, limit, r = 7, 40, 1
+    ours = np.asarray(band_starts(jnp.asarray(estimate), width=width, limit=limit,
+                                  spread_radius=r, labels=jnp.asarray(labels),
+                                  num_segments=10))
+    rounded = np.round(estimate).astype(int)
+    for y in range(8):
+        for x in range(10):
+            inside = rounded[labels == labels[y, x]]
+            window = [rounded[min(max(y + dy, 0), 7), min(max(x + dx, 0), 9)]
+                      for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+            start = rounded[y, x] - (width - 1) // 2
+            for low, high in ((min(window), max(window)), (inside.min(), inside.max())):
+                if high - low < width:  # the segment's range, where it fits, decides
+                    start = low - (width - 1 - (high - low)) // 2
+            assert ours[y, x] == min(max(start, 0), limit - width)
+
+
 def test_band_cost_is_the_volume_read_at_the_band():
     rng = np.random.default_rng(0)
     left = rng.random((6, 20, 3)).astype(np.float32)
