@@ -80,25 +80,31 @@ def _bad(disparity, scene, *, first_column: int = 0) -> dict[str, float]:
             "inner": scores["inner"]["all"]}
 
 
-def scene_ranges(scene) -> tuple[dict[str, tuple[int, int]], float]:
-    """``{range name: (min_disp, ndisp)}`` of one scene, and the warm coarse pass's seconds."""
+def scene_ranges(scene, *, default_only: bool = False
+                 ) -> tuple[dict[str, tuple[int, int]], float]:
+    """``{range name: (min_disp, ndisp)}`` of one scene, and the warm coarse pass's seconds.
+    ``default_only``: the true range and the library's default rule only."""
     known = scene.ground_truth[np.isfinite(scene.ground_truth)]
-    ranges = {"true": (0, scene.ndisp), "top +8": (0, scene.ndisp + 8)}
-    lowest = min(8, math.floor(float(known.min())))
-    if lowest >= 1:
-        ranges["bottom raised"] = (lowest, scene.ndisp - lowest)
+    ranges = {"true": (0, scene.ndisp)}
+    if not default_only:
+        ranges["top +8"] = (0, scene.ndisp + 8)
+        lowest = min(8, math.floor(float(known.min())))
+        if lowest >= 1:
+            ranges["bottom raised"] = (lowest, scene.ndisp - lowest)
     coarse_disparities(scene.left, scene.right)  # compiled (once per coarse bucket) and warm
     start = time.perf_counter()
     coarse = coarse_disparities(scene.left, scene.right)
     seconds = time.perf_counter() - start
-    for name, keywords in RULES.items():
-        ranges[name] = tuple(range_from_coarse(coarse, **keywords))
+    rules = [default_rule()] if default_only else list(RULES)
+    for name in rules:
+        ranges[name] = tuple(range_from_coarse(coarse, **RULES[name]))
     return ranges, seconds
 
 
-def run_scene(set_name: str, scene, params, buckets) -> list[dict]:
+def run_scene(set_name: str, scene, params, buckets, *, default_only: bool = False
+              ) -> list[dict]:
     """One row per range of the scene: the range, its cut and its bad 2.0."""
-    ranges, seconds = scene_ranges(scene)
+    ranges, seconds = scene_ranges(scene, default_only=default_only)
     known = scene.ground_truth[np.isfinite(scene.ground_truth)]
     scored = {}  # (min_disp, ndisp) -> scores: ranges that coincide are matched once
     rows = []
@@ -247,6 +253,9 @@ def main(argv=None) -> int:
     parser.add_argument("--preset", default="accurate", choices=list(sswjax.PRESETS))
     parser.add_argument("--bucket", action="store_true",
                         help="pad every pair to shape buckets (64 pixels, 32 disparities)")
+    parser.add_argument("--default-only", action="store_true",
+                        help="the true range and the library's rule only (report "
+                             "auto_range_default)")
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args(argv)
     params = sswjax.preset(args.preset)
@@ -254,14 +263,16 @@ def main(argv=None) -> int:
     rows = []
     for set_name in args.sets:
         for scene in load_scenes(args.data / SETS[set_name]):
-            scene_rows = run_scene(set_name, scene, params, buckets)
+            scene_rows = run_scene(set_name, scene, params, buckets,
+                                   default_only=args.default_only)
             rows += scene_rows
             print(f"{set_name} {scene.name}: true {scene_rows[0]['all']:.2f}, " + ", ".join(
                 f"{row['range']} {row['min_disp']}+{row['ndisp']} "
                 f"{row['all'] - scene_rows[0]['all']:+.2f}" for row in scene_rows[1:]),
                 file=sys.stderr, flush=True)
-    write_report(args.output, "auto_range_bucket" if args.bucket else "auto_range", table(rows),
-                 rows, KEYS)
+    name = "auto_range" + ("_bucket" if args.bucket else "") + (
+        "_default" if args.default_only else "")
+    write_report(args.output, name, table(rows), rows, KEYS)
     return 0
 
 
