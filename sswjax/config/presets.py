@@ -7,9 +7,9 @@ preset, the separable median's width and the side-window passes. Every semi-glob
 the aggregated cost in uint8 levels for the int16 paths (a quarter of float32's bytes through
 the memory-bound scans; the same errors within 0.03 on every set) and runs the occlusion tests:
 the uniqueness test on the costs before aggregation, the aggregated cost's right view and the
-left band's fitted line. ``accurate`` and ``fast`` end with the gated bilateral
-smoothing of the map (two passes, gate 2 px), chosen on the three sets by the same rule over
-bad 2.0, 1.0 and 0.5 (``docs/precision.md``). ``balanced`` is ``accurate`` coarse-to-fine with
+left band's fitted line. ``accurate``, ``fast`` and ``finest`` end with the gated
+bilateral smoothing of the map (two passes, gate 2 px), chosen on the three sets by the same
+rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``). ``balanced`` is ``accurate`` coarse-to-fine with
 the full-resolution band of 7 disparities (``benchmarks/band.py``, ``docs/band.md``).
 """
 
@@ -46,7 +46,7 @@ _SEMI_GLOBAL = _PAPER.replace(
     fill=LeftBandFill(median_radius=7, median="separable", band_fit=15),
     smoothing=_SMOOTHING,
     # Two lines instead of Eq. 8's parabola: less pixel locking on the semi-global sums, chosen
-    # held out on the three sets for accurate, balanced and fast (docs/precision.md).
+    # held out on the three sets for each preset (docs/precision.md, docs/paper-parts.md).
     selection=WinnerTakesAll(fit="equiangular"),
 )
 # accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
@@ -77,10 +77,9 @@ PRESETS: dict[str, Preset] = {
     "finest": Preset(_ACCURATE.replace(
         aggregation=SideWindowAggregation(iterations=2),
         optimizer=SemiGlobal(paths=8, dtype="uint8", p1=0.05, p2=0.8),
-        fill=WeightedMedianFill(band_fit=15),
-        # Not measured with the smoothing or the equiangular fit yet: as chosen before them.
-        selection=WinnerTakesAll(),
-        smoothing=None),
+        # The equiangular fit and the smoothing, as accurate: chosen together, held out on
+        # the three sets at bad 2.0 and at 2.0, 1.0 and 0.5 (docs/paper-parts.md).
+        fill=WeightedMedianFill(band_fit=15)),
         "accurate with two side-window passes, 8 paths, P1 0.05 and P2 0.8, and the guided "
         "weighted-median fill of the rejected pixels: the most accurate on occlusions and "
         "slanted planes, about 2x accurate's time"),
