@@ -9,8 +9,9 @@ the memory-bound scans; the same errors within 0.03 on every set) and runs the o
 the uniqueness test on the costs before aggregation, the aggregated cost's right view and the
 left band's fitted line. ``accurate``, ``fast`` and ``finest`` end with the gated
 bilateral smoothing of the map (two passes, gate 2 px), chosen on the three sets by the same
-rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``). ``balanced`` is ``accurate`` coarse-to-fine with
-the full-resolution band of 7 disparities (``benchmarks/band.py``, ``docs/band.md``).
+rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``).
+``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
+(``benchmarks/band.py``, ``docs/band.md``).
 """
 
 from __future__ import annotations

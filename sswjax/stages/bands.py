@@ -46,8 +46,8 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
     With ``labels`` (superpixels) the range is taken over the pixel's superpixel instead,
     wherever it fits in the band (else the window's range or the pixel's own estimate, as
     above): a superpixel follows the image's edges, so its range is the support the segment
-    gives the band (issue 25's "per-segment ranges"; the paper's segments, Eq. 6, used here
-    for the search range rather than the cost).
+    gives the band (the tSGM's per-pixel range taken per segment; the paper's superpixels,
+    Eq. 6, used for the search range rather than the cost).
 
     Parameters
     ----------
@@ -77,9 +77,9 @@ def band_starts(estimate: jax.Array, *, width: int, limit, spread_radius: int = 
     >>> band_starts(edge, width=7, limit=20).tolist(), band_starts(
     ...     edge, width=7, limit=20, spread_radius=1).tolist()
     ([[0, 0, 3, 3]], [[0, 1, 1, 3]])
-    >>> band_starts(edge, width=7, limit=20, labels=jnp.array([[0, 0, 1, 1]]),
-    ...             num_segments=2).tolist()          # each side's superpixel: its own range
-    [[0, 0, 3, 3]]
+    >>> band_starts(edge, width=7, limit=20, labels=jnp.zeros((1, 4), jnp.int32),
+    ...             num_segments=1).tolist()          # one superpixel over both sides
+    [[1, 1, 1, 1]]
     """
     check_rank("estimate", estimate, 2)
     check_positive_int("width", width)
