@@ -11,7 +11,7 @@ Rows are in ``benchmarks/smoothing.py``'s CSV format; the held-out rule of
 
     python benchmarks/band.py --config fast --config \\
         'band7=accurate:{"coarse": {"kind": "halving", "levels": 1}, "band": {"kind": "around-map"}}'
-        [--data ../shared/data] [--timed 5] [-o benchmarks/results/band]
+        [--data ../shared/data] [--timed 5] [--time-only] [-o benchmarks/results/band]
 """
 
 from __future__ import annotations
@@ -84,6 +84,8 @@ def main(argv=None) -> int:
                         / "shared" / "data")
     parser.add_argument("--timed", type=int, default=5,
                         help="trainingQ pairs timed against SGBM (0: no timing)")
+    parser.add_argument("--time-only", action="store_true",
+                        help="only the timing against SGBM, no scoring (report times.md)")
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results/band"))
     args = parser.parse_args(argv)
     enable_compilation_cache()
@@ -96,14 +98,15 @@ def main(argv=None) -> int:
     rows = []
     for name, run in runs.items():
         row = {"config": name}
-        for set_name in SETS:
+        for set_name in () if args.time_only else SETS:
             row.update(score(run, set_name, args.data))
             print(name, set_name, file=sys.stderr, flush=True)
         row["x SGBM"] = time_ratio(run, timed) if timed else float("nan")
         rows.append(row)
         # after every configuration: a run stopped halfway keeps what it measured
-        write_report(args.output, "band", _table(rows), rows, list(rows[0]))
-    if len(rows) > 1:
+        write_report(args.output, "times" if args.time_only else "band", _table(rows), rows,
+                     list(rows[0]))
+    if len(rows) > 1 and not args.time_only:
         write_held_out(args.output, rows)
     return 0
 
