@@ -4,12 +4,14 @@ For each preset, in new Python processes (nothing shared with this one but the f
 
 1. ``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` from the command line, timed from outside
    (process start to exit), first with an empty compilation cache (a new folder), then again
-   with that folder warm, then warm without its stored executables (the trace lowered and the
-   executable found in XLA's cache: the path before executables were stored, measured in the
-   same minute), and in a fresh folder after ``sswjax warmup --like LEFT``.
+   with that folder warm (the default: the stored trace lowered and the executable found in
+   XLA's cache), then warm with the stored executables read (``SSWJAX_STORE_EXECUTABLES=1``,
+   opt-in: :mod:`sswjax.runtime.stored`), and in a fresh folder after ``sswjax warmup --like
+   LEFT``. The empty run stores the executables, so that the opt-in row finds them.
 2. The same pair through the API's stored graph (:mod:`sswjax.runtime.stored`), the phases
    timed inside the process: ``import sswjax``, tracing the graph (empty cache) or loading its
-   stored executable (warm: then nothing is lowered or compiled, 0 in those columns), lowering
+   stored trace (warm) or executable (opt-in: then nothing is lowered or compiled, 0 in those
+   columns), lowering
    it, compiling it (or finding it in XLA's cache), the first run, and a warm run. Python's
    bytecode cache is on in every process (:func:`child_environment`).
 
@@ -80,12 +82,13 @@ print(json.dumps(times))
 """
 
 
-def child_environment(cache: Path) -> dict[str, str]:
-    """The environment of a measured process: ``cache`` as its compilation cache, and Python's
-    bytecode cache on, as a user's Python has it (without ``PYTHONDONTWRITEBYTECODE``, which
-    some sandboxes set: then every module of the package is compiled from source at every
-    start, about 0.2 s more here)."""
-    env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
+def child_environment(cache: Path, executables: bool = False) -> dict[str, str]:
+    """The environment of a measured process: ``cache`` as its compilation cache, compiled
+    executables stored and read if ``executables``, and Python's bytecode cache on, as a user's
+    Python has it (without ``PYTHONDONTWRITEBYTECODE``, which some sandboxes set: then every
+    module of the package is compiled from source at every start, about 0.2 s more here)."""
+    env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache),
+           "SSWJAX_STORE_EXECUTABLES": "1" if executables else "0"}
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
 
@@ -100,10 +103,11 @@ def warmup_seconds(left: Path, ndisp: int, preset: str, cache: Path) -> float:
     return time.perf_counter() - start
 
 
-def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -> float:
+def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path,
+                executables: bool = False) -> float:
     """Wall time of one ``sswjax match`` in a new process, with ``cache`` as its XLA cache."""
     with tempfile.TemporaryDirectory() as out:
-        env = child_environment(cache)
+        env = child_environment(cache, executables)
         command = [sys.executable, "-m", "sswjax.cli", "match", str(left), str(right),
                    "--ndisp", str(ndisp), "--preset", preset, "-o", f"{out}/d.pfm"]
         start = time.perf_counter()
@@ -111,11 +115,13 @@ def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -
         return time.perf_counter() - start
 
 
-def api_phases(left: Path, right: Path, ndisp: int, preset: str, cache: Path) -> dict:
+def api_phases(left: Path, right: Path, ndisp: int, preset: str, cache: Path,
+               executables: bool = False) -> dict:
     """The phases of a first API call in a new process (seconds per phase, and the total)."""
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", _CHILD, str(left), str(right), str(ndisp),
-                           str(cache), preset], env=child_environment(cache), check=True,
+                           str(cache), preset], env=child_environment(cache, executables),
+                          check=True,
                           capture_output=True, text=True)
     phases = json.loads(done.stdout.strip().splitlines()[-1])
     phases["process"] = time.perf_counter() - start
@@ -127,22 +133,21 @@ def spread(values: list[float]) -> str:
 
 
 def measure(left: Path, right: Path, ndisp: int, preset: str, repeat: int) -> list[dict]:
-    """Rows of the report for one preset, CLI then API: an empty cache; the same cache warm;
-    warm without the stored executables (``graphs/*.xlaexec`` removed: the stored trace is
-    lowered and XLA's cache gives the executable, as before executables were stored), measured
-    right after the warm run; and for the CLI a fresh cache after ``sswjax warmup``."""
+    """Rows of the report for one preset, CLI then API: an empty cache; the same cache warm
+    (the default: the stored trace lowered, XLA's cache gives the executable); warm with the
+    stored executables read (``SSWJAX_STORE_EXECUTABLES=1``), measured right after; and for the
+    CLI a fresh cache after ``sswjax warmup``."""
     rows = []
     for surface, once in (("CLI", cli_seconds), ("API", api_phases)):
-        runs = {"empty": [], "warm": [], "warm, trace only": []}
+        runs = {"empty": [], "warm": [], "warm, executables stored (opt-in)": []}
         if surface == "CLI":
             runs["after warmup"] = []
         for _ in range(repeat):
             with tempfile.TemporaryDirectory() as cache:
-                runs["empty"].append(once(left, right, ndisp, preset, Path(cache)))
+                runs["empty"].append(once(left, right, ndisp, preset, Path(cache), True))
                 runs["warm"].append(once(left, right, ndisp, preset, Path(cache)))
-                for executable in Path(cache).glob("graphs/*.xlaexec"):
-                    executable.unlink()
-                runs["warm, trace only"].append(once(left, right, ndisp, preset, Path(cache)))
+                runs["warm, executables stored (opt-in)"].append(
+                    once(left, right, ndisp, preset, Path(cache), True))
             if surface == "CLI":
                 with tempfile.TemporaryDirectory() as cache:  # filled by sswjax warmup --like
                     warmup_seconds(left, ndisp, preset, Path(cache))

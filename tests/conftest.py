@@ -10,6 +10,7 @@ another one nor this file: what several files share is a fixture here.
 - ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
 - ``run_cli``: the command line's ``main`` (``sswjax.cli``) in process, returning ``(exit code, stdout, stderr)``.
 - ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
+- every test process keeps the persistent compilation cache in a new folder of its own.
 """
 
 from __future__ import annotations
@@ -32,6 +33,22 @@ HEIGHT, WIDTH, SHIFT, NDISP = 24, 40, 3, 8
 
 def _texture(seed: int, shape=(HEIGHT, WIDTH, 3)) -> np.ndarray:
     return (np.random.default_rng(seed).random(shape) * 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _compilation_cache_of_this_worker(tmp_path_factory):
+    """Each test process (each pytest-xdist worker) keeps the persistent compilation cache that
+    the command line turns on in a new folder of its own, never the user's
+    (``~/.cache/sswjax/xla``) nor one written by an earlier run or by another worker: what a
+    test compiles and reads is what this run of this code made. Tests of the cache shared
+    between processes set ``SSWJAX_CACHE_DIR`` in their own processes."""
+    previous = os.environ.get("SSWJAX_CACHE_DIR")
+    os.environ["SSWJAX_CACHE_DIR"] = str(tmp_path_factory.mktemp("xla-cache"))
+    yield
+    if previous is None:
+        os.environ.pop("SSWJAX_CACHE_DIR", None)
+    else:
+        os.environ["SSWJAX_CACHE_DIR"] = previous
 
 
 @pytest.fixture(scope="session")

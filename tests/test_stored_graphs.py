@@ -28,8 +28,11 @@ _PARAMS = sswjax.preset("paper").replace(segments=None, smoothing=None)
 def _xla_compiles_here(monkeypatch):
     """XLA's persistent cache off in this process (whether an earlier test of the worker turned
     it on or not): an executable read from it is not stored, and these tests store. The command
-    line tests below run with the cache, in their own processes."""
+    line tests below run with the cache, in their own processes. Executables are stored (an
+    opt-in, ``SSWJAX_STORE_EXECUTABLES=1``) here and in those processes, but where a test says
+    otherwise."""
     monkeypatch.setattr(jax_compilation_cache, "is_cache_used", lambda backend: False)
+    monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "1")
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +61,24 @@ def test_a_stored_graph_gives_the_jitted_results_bit_for_bit(tmp_path, pair):
     assert type(got) is type(expected)
     for a, b in zip(got, expected):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_executables_are_stored_only_when_asked(tmp_path, pair, monkeypatch):
+    monkeypatch.delenv("SSWJAX_STORE_EXECUTABLES")
+    fn = ssw_disparity.__wrapped__
+    expected = np.asarray(ssw_disparity(*pair, _PARAMS, ndisp=8))
+    np.testing.assert_array_equal(
+        np.asarray(_stored(fn, tmp_path, *pair, _PARAMS, ndisp=8)(*pair, _PARAMS, ndisp=8)),
+        expected)
+    assert len(list(tmp_path.glob("*.jaxexport"))) == 1
+    assert not list(tmp_path.glob("*.xlaexec"))
+    monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "1")
+    _stored(fn, tmp_path, *pair, _PARAMS, ndisp=8)(*pair, _PARAMS, ndisp=8)
+    (executable,) = tmp_path.glob("*.xlaexec")
+    monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "0")
+    again = _stored(fn, tmp_path, *pair, _PARAMS, ndisp=8)
+    assert again.loaded and not again.executable_loaded  # the file is there, and not read
+    np.testing.assert_array_equal(np.asarray(again(*pair, _PARAMS, ndisp=8)), expected)
 
 
 def test_another_signature_is_another_graph(tmp_path, pair):

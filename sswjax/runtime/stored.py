@@ -14,7 +14,11 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   :func:`compile_lowered`), keyed further by the host (:func:`host_digest`: the backend and
   its version, the devices, ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA
   compiles for): a process that finds it loads it directly, and skips the lowering as well
-  (0.25 s of ``accurate``'s first call on a trainingQ pair). It is used for calls on concrete
+  (0.25 s of ``accurate``'s first call on a trainingQ pair). It is stored and read only when
+  ``SSWJAX_STORE_EXECUTABLES=1`` (:func:`executables_stored`): a test worker that had compiled
+  and run many graphs crashed (a segmentation fault) in the first run of an executable read
+  from such a file, from a cache shared with other processes, and the cause is not known.
+  It is used for calls on concrete
   arrays of the default device; a call under a transformation (a tracer among the arguments)
   or with arrays on another device goes through the lowered program as above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
@@ -50,11 +54,18 @@ import jax
 import jaxlib
 from jax.experimental import serialize_executable
 
-__all__ = ["StoredGraph", "compile_lowered", "graph_folder", "graph_key", "host_digest",
-           "source_digest"]
+__all__ = ["StoredGraph", "compile_lowered", "executables_stored", "graph_folder", "graph_key",
+           "host_digest", "source_digest"]
 
 _SUFFIX = ".jaxexport"
 _EXECUTABLE_SUFFIX = ".xlaexec"
+
+
+def executables_stored() -> bool:
+    """Whether compiled executables are stored and read (``SSWJAX_STORE_EXECUTABLES=1``): off by
+    default, since one read into a long-lived process crashed it (the module's notes); the
+    stored traces and XLA's own cache are used either way."""
+    return os.environ.get("SSWJAX_STORE_EXECUTABLES", "") == "1"
 
 
 def graph_folder() -> Path | None:
@@ -230,7 +241,8 @@ class StoredGraph:
         self._specs = [_abstract(leaf) for leaf in leaves]
         self._path = folder / graph_key(fn, self._treedef, self._specs, self._fixed)
         self._executable_path = self._path.with_name(
-            f"{self._path.stem}-{host_digest()[:16]}{_EXECUTABLE_SUFFIX}")
+            f"{self._path.stem}-{host_digest()[:16]}{_EXECUTABLE_SUFFIX}"
+        ) if executables_stored() else None
         self._device = jax.devices()[0]
         self._call, self._compiled, self._trace_read = None, None, False
         self.executable_loaded = self._read_executable()
@@ -241,7 +253,8 @@ class StoredGraph:
     def _read_executable(self) -> bool:
         """Take the stored executable, if there is a readable one; it is unproven until its
         first run (:meth:`__call__`)."""
-        self._compiled = _load(self._executable_path, _read_executable)
+        self._compiled = None if self._executable_path is None else _load(
+            self._executable_path, _read_executable)
         self._unproven = self._compiled is not None
         return self._unproven
 
@@ -288,7 +301,7 @@ class StoredGraph:
         is stored where the backend cannot serialize it or the disk refuses: it is compiled
         again in the next process."""
         self._compiled, self._unproven = compiled, False
-        if not fresh:
+        if not fresh or self._executable_path is None:
             return
         try:
             _write_atomically(self._executable_path, _executable_bytes(compiled))
