@@ -6,7 +6,8 @@ The graph reads these options (:mod:`sswjax.graph.refine`, :mod:`sswjax.graph.co
 :func:`~sswjax.stages.filters.side_window_median_filter`,
 :func:`~sswjax.stages.pyramid.halve_image`,
 :func:`~sswjax.stages.upsampling.upsample_disparity` and
-:func:`~sswjax.stages.smoothing.gated_bilateral_mean`.
+:func:`~sswjax.stages.smoothing.gated_bilateral_mean` (or its separable form,
+:func:`~sswjax.stages.smoothing.gated_bilateral_line_mean`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import jax.numpy as jnp
 
 from sswjax.config.fields import ConfigError, is_set, option
 from sswjax.config.parts import Part, register
-from sswjax.stages.smoothing import gated_bilateral_mean
+from sswjax.stages.smoothing import gated_bilateral_line_mean, gated_bilateral_mean
 
 __all__ = ["CoarseToFine", "GatedBilateralSmoothing", "SideWindowMedian"]
 
@@ -64,10 +65,17 @@ class GatedBilateralSmoothing(Part):
     colour_scale: float = option(0.1, above=0, help="scale of the colour weight (sum of "
                                  "absolute channel differences, intensities in [0, 1])")
     iterations: int = option(1, static=True, low=1, high=4, help="passes of the filter")
+    separable: bool = option(False, static=True, help="a row then a column of the window per "
+                             "pass instead of the square: 3.5x fewer weights at radius 3, an "
+                             "approximation")
 
     def smooth(self, disparity, guide, limit):
         """float32 (H, W) map and (H, W, C) left image -> the smoothed map in [0, limit - 1]."""
+        options = dict(radius=self.radius, gate=self.gate, colour_scale=self.colour_scale)
         for _ in range(self.iterations):
-            disparity = gated_bilateral_mean(disparity, guide, radius=self.radius,
-                                             gate=self.gate, colour_scale=self.colour_scale)
+            if self.separable:
+                for axis in (1, 0):
+                    disparity = gated_bilateral_line_mean(disparity, guide, axis=axis, **options)
+            else:
+                disparity = gated_bilateral_mean(disparity, guide, **options)
         return jnp.clip(disparity, 0, limit - 1)

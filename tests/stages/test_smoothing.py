@@ -4,20 +4,22 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.smoothing import gated_bilateral_mean
+from sswjax.stages.smoothing import gated_bilateral_line_mean, gated_bilateral_mean
 
 
 def _reference(disparity: np.ndarray, guide: np.ndarray, radius: int, gate: float,
-               scale: float) -> np.ndarray:
+               scale: float, axis=None) -> np.ndarray:
     """The definition written pixel by pixel, the window clamped to the image (edge
-    replication)."""
+    replication): the square, or the line along ``axis``."""
     height, width = disparity.shape
     out = np.zeros_like(disparity, dtype=np.float64)
+    rows = [0] if axis == 1 else range(-radius, radius + 1)
+    cols = [0] if axis == 0 else range(-radius, radius + 1)
     for y in range(height):
         for x in range(width):
             total = weights = 0.0
-            for dy in range(-radius, radius + 1):
-                for dx in range(-radius, radius + 1):
+            for dy in rows:
+                for dx in cols:
                     qy, qx = min(max(y + dy, 0), height - 1), min(max(x + dx, 0), width - 1)
                     if abs(disparity[qy, qx] - disparity[y, x]) >= gate:
                         continue
@@ -41,6 +43,27 @@ def test_matches_the_loop_reference(shape, radius, gate, scale):
                                gate=gate, colour_scale=scale)
     np.testing.assert_allclose(np.asarray(got), _reference(disparity, guide, radius, gate, scale),
                                rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+@pytest.mark.parametrize("shape,radius,gate,scale", [((9, 11, 3), 1, 1.0, 0.1),
+                                                     ((6, 7, 1), 3, 2.5, 1.0)])
+def test_the_line_mean_matches_the_loop_reference(shape, radius, gate, scale, axis):
+    rng = np.random.default_rng(sum(shape) + radius + axis)
+    guide = rng.random(shape).astype(np.float32)
+    disparity = (np.where(np.arange(shape[1]) < shape[1] // 2, 2.0, 5.0)
+                 + rng.normal(0, 0.6, shape[:2])).astype(np.float32)
+    got = gated_bilateral_line_mean(jnp.asarray(disparity), jnp.asarray(guide), radius=radius,
+                                    gate=gate, colour_scale=scale, axis=axis)
+    np.testing.assert_allclose(np.asarray(got),
+                               _reference(disparity, guide, radius, gate, scale, axis),
+                               rtol=1e-5, atol=1e-5)
+
+
+def test_the_line_mean_refuses_another_axis():
+    with pytest.raises(ValueError, match="axis"):
+        gated_bilateral_line_mean(jnp.zeros((4, 5)), jnp.zeros((4, 5, 1)), radius=1, gate=1.0,
+                                  colour_scale=0.1, axis=2)
 
 
 def test_keeps_depth_edges_and_planes():
