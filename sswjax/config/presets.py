@@ -7,9 +7,11 @@ preset, the separable median's width and the side-window passes. Every semi-glob
 the aggregated cost in uint8 levels for the int16 paths (a quarter of float32's bytes through
 the memory-bound scans; the same errors within 0.03 on every set) and runs the occlusion tests:
 the uniqueness test on the costs before aggregation, the aggregated cost's right view and the
-left band's fitted line. ``accurate``, ``fast`` and ``finest`` end with the gated
-bilateral smoothing of the map (two passes, gate 2 px), chosen on the three sets by the same
-rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``).
+left band's fitted line. Every semi-global preset ends with the gated bilateral smoothing of
+the map (two passes, gate 2 px), chosen on the three sets by the same rule over bad 2.0, 1.0
+and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``); ``accurate`` runs each pass as a row
+then a column of the window, ``fast`` three such passes (the same errors within 0.05 at bad
+2.0, 2-5x less time in the stage).
 ``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
 (``benchmarks/band.py``, ``docs/band.md``).
 """
@@ -52,11 +54,17 @@ _SEMI_GLOBAL = _PAPER.replace(
 )
 # accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
 # three passes, 15 x 15 and the left-band fill; fast keeps those.
-_ACCURATE = _SEMI_GLOBAL.replace(
+_ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
     aggregation=SideWindowAggregation(iterations=1),
     optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
     fill=VoteFill(median_radius=9, median="separable", band_fit=15),
 )
+# The smoothing of accurate and fast as a row then a column of its window (3.5x fewer weights
+# per pass): the cheapest point of the grid within 0.05 of the held-out choice at bad 2.0 on
+# every set (benchmarks/smoothing.py, docs/precision.md); balanced and finest keep the square.
+_ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True))
+_FAST = _SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1),
+                             smoothing=_SMOOTHING.replace(separable=True, iterations=3))
 
 PRESETS: dict[str, Preset] = {
     "paper": Preset(_PAPER, "the paper's method: SSW aggregation, winner-takes-all, LR check, "
@@ -65,17 +73,17 @@ PRESETS: dict[str, Preset] = {
                                   "semi-global optimisation of the aggregated cost (4 paths), "
                                   "occlusion tests, intensity-weighted vote fill, the map "
                                   "smoothed along its surfaces"),
-    "fast": Preset(_SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1)),
+    "fast": Preset(_FAST,
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image (coarse-to-fine): about 5x faster, "
                    "less precise below 2 pixels"),
-    "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1),
+    "balanced": Preset(_ACCURATE_WINDOWS.replace(coarse=CoarseToFine(levels=1),
                                          band=DisparityBand(width=7)),
                        "accurate on the pair halved, then again at full resolution over 7 "
                        "disparities around each pixel's doubled disparity (the band): about 2x "
                        "faster than accurate, ahead of it on KITTI and Middlebury 2001 at "
                        "bad 2.0, behind on trainingQ"),
-    "finest": Preset(_ACCURATE.replace(
+    "finest": Preset(_ACCURATE_WINDOWS.replace(
         aggregation=SideWindowAggregation(iterations=2),
         optimizer=SemiGlobal(paths=8, dtype="uint8", p1=0.05, p2=0.8),
         # The equiangular fit and the smoothing, as accurate: chosen together, held out on
