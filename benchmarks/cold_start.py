@@ -184,9 +184,10 @@ def main() -> None:
     keys = ["preset", "surface", "cache", *PHASES, "total"]
     header = "| " + " | ".join(keys) + " |\n|" + "---|" * len(keys) + "\n"
     table = (f"First call on trainingQ {args.scene} ({ndisp} disparities), fresh processes, "
-             f"seconds, median (min-max) of {args.repeat}; warm: the graph's stored "
-             "executable read, nothing lowered or compiled; warm, trace only: the same "
-             "cache without the stored executables, run right after\n\n" + header
+             f"seconds, median (min-max) of {args.repeat}; warm (the default): the graph's "
+             "stored trace lowered, XLA's cache gives the executable; warm, executables "
+             "stored (opt-in, SSWJAX_STORE_EXECUTABLES=1): the executable read, nothing "
+             "lowered or compiled, run right after\n\n" + header
              + "\n".join("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |"
                          for row in rows))
     write_report(args.output, "cold_start", table, rows, keys)
