@@ -23,6 +23,7 @@ import sswjax
 from sswjax.data.layouts import load_scenes
 
 from _report import write_report  # benchmarks/, on the path when run as a script
+from smoothing import _table
 
 
 def variants(params: sswjax.Params) -> dict[str, sswjax.Params]:
@@ -73,10 +74,7 @@ def main(argv=None) -> int:
                              "call ms": round(1000 * seconds),
                              "stage ms": round(1000 * (seconds - best["none"]))})
             print(preset, scene.name, best, file=sys.stderr, flush=True)
-    keys = list(rows[0])
-    table = "\n".join(["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)] +
-                      ["| " + " | ".join(str(row[k]) for k in keys) + " |" for row in rows])
-    write_report(args.output, "time", table, rows, keys)
+    write_report(args.output, "time", _table(rows), rows, list(rows[0]))
     return 0
 
 

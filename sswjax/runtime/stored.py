@@ -18,8 +18,8 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   ``SSWJAX_STORE_EXECUTABLES=1`` (:func:`executables_stored`): a test worker that had compiled
   and run many graphs crashed (a segmentation fault) in the first run of an executable read
   from such a file, from a cache shared with other processes, and the cause is not known.
-  It is used for calls on concrete
-  arrays of the default device; a call under a transformation (a tracer among the arguments)
+  It is used for calls on concrete arrays of the default device; a call under a
+  transformation (a tracer among the arguments)
   or with arrays on another device goes through the lowered program as above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
   the call goes through the lowered program. The file is a pickle that loads machine code:
