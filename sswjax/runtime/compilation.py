@@ -18,12 +18,16 @@ from pathlib import Path
 
 import jax
 
-__all__ = ["default_cache_dir", "damaged_entries", "enable_compilation_cache", "repairing_cache"]
+__all__ = ["CACHE_BYTES", "default_cache_dir", "damaged_entries", "enable_compilation_cache",
+           "repairing_cache"]
 
 _UNREADABLE = "Error reading persistent compilation cache entry"
 """The start of JAX's warning when an entry cannot be read."""
 
 _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+CACHE_BYTES = 16 << 30
+"""The compilation cache's bound, 16 GiB: thousands of programs (one is 1-10 MB)."""
 
 
 def default_cache_dir() -> Path:
@@ -37,10 +41,13 @@ def default_cache_dir() -> Path:
 def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path | None:
     """Turn on JAX's persistent compilation cache in ``path`` (default :func:`default_cache_dir`).
 
-    Programs that took at least 0.5 s to compile are stored. This sets process-wide JAX
-    configuration, so it is called by entry points (the CLI, benchmarks), never by library
-    functions. Returns the folder, or ``None`` when it cannot be created (the cache is then
-    left off: it is an optimisation, not a requirement).
+    Programs that took at least 0.5 s to compile are stored. The cache is bounded
+    (:data:`CACHE_BYTES`; beyond it JAX removes the least recently used entries), which is what
+    makes JAX lock the folder while it reads or writes an entry: processes sharing it (Dask
+    workers, the test suite's workers) never read an entry another one is still writing. This
+    sets process-wide JAX configuration, so it is called by entry points (the CLI, benchmarks,
+    workers), never by library functions. Returns the folder, or ``None`` when it cannot be
+    created (the cache is then left off: it is an optimisation, not a requirement).
     """
     folder = Path(path) if path is not None else default_cache_dir()
     try:
@@ -50,6 +57,7 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    jax.config.update("jax_compilation_cache_max_size", CACHE_BYTES)
     return folder
 
 
