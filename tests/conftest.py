@@ -10,7 +10,7 @@ another one nor this file: what several files share is a fixture here.
 - ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
 - ``run_cli``: the command line's ``main`` (``sswjax.cli``) in process, returning ``(exit code, stdout, stderr)``.
 - ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
-- the persistent compilation cache is on in every test process, in a new folder shared by the run.
+- every test process keeps the persistent compilation cache in a new folder of its own.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ import numpy as np
 import pytest
 
 from sswjax.data.io import write_pfm
-from sswjax.runtime.compilation import enable_compilation_cache
 
 TESTS = Path(__file__).parent
 HEIGHT, WIDTH, SHIFT, NDISP = 24, 40, 3, 8
@@ -37,19 +36,14 @@ def _texture(seed: int, shape=(HEIGHT, WIDTH, 3)) -> np.ndarray:
 
 
 @pytest.fixture(scope="session", autouse=True)
-def _compilation_cache_of_this_run(tmp_path_factory, worker_id):
-    """The persistent compilation cache is on in every test process from the start, in a new
-    folder shared by the workers of this run (pytest-xdist) and the processes they start, never
-    the user's (``~/.cache/sswjax/xla``) nor one written by an earlier run: what a test compiles
-    and reads is what this run of this code made, and a graph one worker compiled the others
-    read instead of compiling it again (JAX locks the folder while it reads or writes an entry,
-    :func:`~sswjax.runtime.compilation.enable_compilation_cache`). Tests of the cache shared between processes set ``SSWJAX_CACHE_DIR`` in
-    their own processes."""
-    base = tmp_path_factory.getbasetemp()
-    folder = (base.parent if worker_id != "master" else base) / "xla-cache"
+def _compilation_cache_of_this_worker(tmp_path_factory):
+    """Each test process (each pytest-xdist worker) keeps the persistent compilation cache that
+    the command line turns on in a new folder of its own, never the user's
+    (``~/.cache/sswjax/xla``) nor one written by an earlier run or by another worker: what a
+    test compiles and reads is what this run of this code made. Tests of the cache shared
+    between processes set ``SSWJAX_CACHE_DIR`` in their own processes."""
     previous = os.environ.get("SSWJAX_CACHE_DIR")
-    os.environ["SSWJAX_CACHE_DIR"] = str(folder)
-    enable_compilation_cache(path=folder)
+    os.environ["SSWJAX_CACHE_DIR"] = str(tmp_path_factory.mktemp("xla-cache"))
     yield
     if previous is None:
         os.environ.pop("SSWJAX_CACHE_DIR", None)
