@@ -44,7 +44,7 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
     Programs that took at least 0.5 s to compile are stored. The cache is bounded
     (:data:`CACHE_BYTES`; beyond it JAX removes the least recently used entries), which is what
     makes JAX lock the folder while it reads or writes an entry: processes sharing it (Dask
-    workers, the test suite's workers) never read an entry another one is still writing. This
+    workers, command lines run side by side) never read an entry another one is still writing. This
     sets process-wide JAX configuration, so it is called by entry points (the CLI, benchmarks,
     workers), never by library functions. Returns the folder, or ``None`` when it cannot be
     created (the cache is then left off: it is an optimisation, not a requirement).
