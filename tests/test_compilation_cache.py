@@ -1,5 +1,5 @@
-"""The persistent compilation cache: a damaged entry is removed and stored anew, once, with one
-line for the user instead of JAX's warning on every run."""
+"""The persistent compilation cache: bounded and locked; a damaged entry is removed and stored
+anew, once, with one line for the user instead of JAX's warning on every run."""
 
 from __future__ import annotations
 
@@ -25,6 +25,10 @@ def test_a_damaged_cache_entry_is_replaced(small_pair, tmp_path):
     first = _match(small_pair, tmp_path, cache, "first")
     assert first.returncode == 0, first.stderr
     (entry,) = cache.glob("*-cache")
+    # The cache is bounded, so JAX kept its entry through the locked path (processes sharing the
+    # folder never read a half-written entry): the lock file and the entry's access time.
+    assert (cache / ".lockfile").exists() and [p.name for p in cache.glob("*-atime")] == [
+        entry.name.removesuffix("-cache") + "-atime"]
     data = bytearray(entry.read_bytes())
     data[len(data) // 2:len(data) // 2 + 64] = bytes(64)  # zeros inside the compressed program
     entry.write_bytes(bytes(data))
