@@ -22,7 +22,16 @@ from sswjax.runtime.memory import (
     worker_peak_bytes,
 )
 from sswjax.runtime.plan import bind_graph, check_plan, graph_call
-from sswjax.runtime.tiles import Tiling, in_tiles, tile_windows, window_shape
+from sswjax.runtime.memory import STRIP_HEIGHTS
+from sswjax.runtime.tiles import (
+    PREFERRED_CORE,
+    TILE_SIZES,
+    Tiling,
+    in_tiles,
+    tile_count,
+    tile_windows,
+    window_shape,
+)
 
 CHEAP = sswjax.Params().replace(segments=None, aggregation={"kind": "box", "radius": 1})
 
@@ -123,6 +132,31 @@ def test_memory_guard_cuts_a_wide_pair_in_tiles():
     assert error.value.strips.tile and error.value.strips_estimate <= 8e9
     shared = plan_for_memory(*shape, params=accurate, limit=16e9, share=2, local=False)
     assert estimate_peak_bytes(*shape, params=accurate, plan=shared) <= 8e9
+
+
+def _computed_pixels(height, width, ndisp, plan):
+    tiling = Tiling(plan.tile or plan.strip_rows, plan.tile, plan.strip_overlap, ndisp)
+    rows, cols = window_shape(height, width, tiling)
+    return tile_count(height, width, tiling) * rows * cols
+
+
+def test_memory_guard_prefers_cores_of_256_rows_to_thin_strips_that_compute_less():
+    # docs/cluster.md: on this pair under 3 GB, strips of 64 rows (the fewest computed pixels)
+    # changed 3.36 % of the map against tiles of 1024, tiles of 512 changed 0.03 %
+    accurate, shape = sswjax.preset("accurate"), (3000, 4000, 256)
+    fitted = plan_for_memory(*shape, params=accurate, limit=3e9, local=False)
+    assert fitted.tile >= PREFERRED_CORE and not fitted.strip_rows
+    thin = ExecutionPlan(strip_rows=64, strip_overlap=64)
+    assert estimate_peak_bytes(*shape, params=accurate, plan=thin) <= 3e9
+    assert _computed_pixels(*shape, thin) < _computed_pixels(*shape, fitted)
+    # a budget that no core of 256 rows or more fits still gets the thin strips that fit
+    wide = [ExecutionPlan(strip_rows=rows, strip_overlap=min(96, rows))
+            for rows in STRIP_HEIGHTS if rows >= PREFERRED_CORE]
+    wide += [ExecutionPlan(tile=size) for size in TILE_SIZES if size >= PREFERRED_CORE]
+    budget = min(estimate_peak_bytes(*shape, params=accurate, plan=p) for p in wide) - 1
+    last_resort = plan_for_memory(*shape, params=accurate, limit=budget, local=False)
+    assert 0 < (last_resort.strip_rows or last_resort.tile) < PREFERRED_CORE
+    assert estimate_peak_bytes(*shape, params=accurate, plan=last_resort) <= budget
 
 
 def test_tiles_of_a_local_method_equal_the_whole_image(tmp_path, run_cli, square_pair):

@@ -296,9 +296,9 @@ def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | Non
 
     With a plan of neither (the whole image) and an estimate above the bound, the pair is cut
     in the strips of :data:`STRIP_HEIGHTS` or the square tiles of
-    :data:`~sswjax.runtime.tiles.TILE_SIZES` that fit and compute the fewest pixels (windows
-    times their area: the collars and the ``ndisp`` columns either side of a tile are computed
-    again; the collar is capped at the strip's height); with explicit strips or tiles, or when
+    :data:`~sswjax.runtime.tiles.TILE_SIZES` that fit, cores of 256 rows or more first, then the
+    fewest computed pixels (:func:`~sswjax.runtime.tiles.tilings_by_work`; the collar is capped
+    at the strip's height); with explicit strips or tiles, or when
     the whole image fits, the plan comes back unchanged. Nothing fits:
     :class:`MemoryEstimateError`, as :func:`check_memory` raises it.
 
@@ -370,7 +370,7 @@ def _bound(limit, *, share: int = 1, local: bool = True):
 
 def _cheapest_tiling(shape, plan, bound, estimate):
     """The strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` (of the
-    bucketed shape) that compute the fewest pixels under ``bound``; None if none fits."""
+    bucketed shape) that comes first in its order under ``bound``; None if none fits."""
     height, width, ndisp = shape
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
