@@ -51,7 +51,8 @@ print(json.dumps({"peak": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1
 
 # (height, width, ndisp, preset, parameter changes): Motorcycle Q, Vintage Q's size, the H and
 # full-resolution sizes, tiny sizes (the constant), chunks, strips, the int16 storage, 8 paths,
-# no SLIC, the band.
+# no SLIC, the band, the window of a tile of 1024 with 256 disparities (1216 x 1728), and fast
+# (coarse-to-fine: its full-resolution stages are the window term).
 CONFIGS = [
     (64, 96, 16, "paper", {}),
     (64, 96, 16, "accurate", {}),
@@ -78,6 +79,14 @@ CONFIGS = [
     (497, 741, 70, "balanced", {}),
     (480, 722, 190, "balanced", {}),
     (994, 1482, 140, "balanced", {}),
+    (1216, 1728, 256, "accurate", {}),
+    (994, 1482, 280, "accurate", {}),
+    (64, 96, 16, "fast", {}),
+    (497, 741, 70, "fast", {}),
+    (480, 722, 190, "fast", {}),
+    (994, 1482, 140, "fast", {}),
+    (1216, 1728, 256, "fast", {}),
+    (1988, 2964, 280, "fast", {}),
 ]
 
 TINY = 10_000  # pixels: pairs this small measure the compile floor, not the terms

@@ -32,14 +32,15 @@ its table is in ``docs/speed-and-memory.md``. The terms:
     ``"float32"``: the float32 volume written whole, then its two int16 copies).
 ``sgm8``
     ``h * W * D`` more with 8 paths (the diagonal paths' penalties and carries).
+``sgm_whole``
+    ``h * W * D`` more with the optimiser when the volume is aggregated whole (no blocks).
 ``band``
     1 with a band: its graph's compilation; its ``h * w * K`` adds to ``volume`` and ``sgm``.
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
 measured size the estimate is above the measured peak (by at most :data:`STATED_RATIO`). The
-model describes the CPU backend with the ``ssw`` aggregator; other aggregators are estimated as
-``ssw``.
+model describes the CPU backend and the ``ssw`` aggregator (other aggregators: as ``ssw``).
 """
 
 from __future__ import annotations
@@ -94,34 +95,32 @@ class MemoryEstimateError(MemoryError):
 
 
 COEFFICIENTS: dict[str, float] = {
-    "base": 4.603e8,
-    "image": 13.7,
-    "window": 0.0,
-    "slic": 231.5,
-    "blocks": 30.35,
-    "volume": 30.89,
-    "sgm": 4.749,
-    "sgm_wide": 2.625,
-    "sgm8": 0.4593,
-    "band": 1.75e8,
+    "base": 5.218e8,
+    "image": 14.04,
+    "window": 144.4,
+    "slic": 154.8,
+    "blocks": 8.076,
+    "volume": 23.57,
+    "sgm": 5.423,
+    "sgm_wide": 2.76,
+    "sgm8": 2.592,
+    "sgm_whole": 27.2,
+    "band": 3.66e8,
 }
-"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (``band`` by hand)."""
+"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-04)."""
 
-COMPILE_FLOOR: dict[str, float] = {"none": 0.496e9, "sgm": 0.453e9}
-"""Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling the graph, without and
-with the semi-global optimiser."""
+COMPILE_FLOOR: dict[str, float] = {"none": 0.482e9, "sgm": 0.594e9}
+"""Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling, without / with SGM."""
 
 MARGIN = 1.15
-"""Factor over the fitted model: the measured peaks were 0.91 to 1.14 times the model."""
+"""Factor over the fitted model: the measured peaks were 0.81 to 1.14 times the model."""
 
 SLACK = 150_000_000
-"""Bytes added after the margin: room for run-to-run variation (the same run peaked at 0.45
-to 0.48 GB) and for what the calling process holds besides."""
+"""Bytes added after the margin: run-to-run variation, and what the caller holds besides."""
 
-STATED_RATIO = 1.6
-"""Estimates are between 1 and this many times the measured peak (``docs/speed-and-memory.md``,
-tests), except where the compile floor decides: compiling may take less memory for some small
-shapes than for the tiny one measured, and the estimate is then a larger multiple of the peak."""
+STATED_RATIO = 1.75
+"""Estimates are between 1 and this many times the measured peak (1.14 to 1.72 on the fit's
+sizes, ``docs/speed-and-memory.md``), more where the compile floor decides (small shapes)."""
 
 
 def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None = None,
@@ -164,6 +163,7 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
         "sgm": matched * ndisp + band if sgm else 0.0,
         "sgm_wide": matched * ndisp if sgm and optimizer.dtype != "uint8" else 0.0,
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
+        "sgm_whole": matched * ndisp if sgm and whole else 0.0,
         "band": 0.0 if params.band is None else 1.0,
     }
 
