@@ -16,6 +16,7 @@ import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
+import filelock
 import jax
 
 __all__ = ["CACHE_BYTES", "default_cache_dir", "damaged_entries", "enable_compilation_cache",
@@ -58,7 +59,28 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     jax.config.update("jax_compilation_cache_max_size", CACHE_BYTES)
+    _date_unbounded_entries(folder)
     return folder
+
+
+def _date_unbounded_entries(folder: Path) -> None:
+    """Give every entry of ``folder`` without an access-time file one, its modification time.
+
+    JAX's bounded cache (``jax._src.lru_cache``: ``KEY-cache`` holds a program, ``KEY-atime`` its
+    last use, 8 bytes, nanoseconds, little-endian) reads the access time of every entry before it
+    stores a new one, and fails when one is missing: an entry stored while the cache was
+    unbounded (sswjax before 2026-12-04) would stop every new entry from being stored. Done
+    under JAX's own lock on the folder; a folder that cannot be written or locked is left as
+    it is (the cache is an optimisation).
+    """
+    try:
+        with filelock.FileLock(folder / ".lockfile", timeout=10):
+            for entry in folder.glob("*-cache"):
+                atime = entry.with_name(entry.name.removesuffix("-cache") + "-atime")
+                if not atime.exists():
+                    atime.write_bytes(entry.stat().st_mtime_ns.to_bytes(8, "little"))
+    except (OSError, filelock.Timeout):
+        return
 
 
 def _readable(data: bytes) -> bool:
