@@ -16,13 +16,13 @@ import sswjax
 from sswjax import ExecutionPlan
 from sswjax.data.io import read_pfm
 from sswjax.runtime.memory import (
+    STRIP_HEIGHTS,
     MemoryEstimateError,
     estimate_peak_bytes,
     plan_for_memory,
     worker_peak_bytes,
 )
 from sswjax.runtime.plan import bind_graph, check_plan, graph_call
-from sswjax.runtime.memory import STRIP_HEIGHTS
 from sswjax.runtime.tiles import (
     PREFERRED_CORE,
     TILE_SIZES,

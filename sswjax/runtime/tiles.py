@@ -30,8 +30,8 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles", "tile_count",
-           "tile_windows", "tilings_by_work", "window_shape"]
+__all__ = ["PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles",
+           "tile_count", "tile_windows", "tilings_by_work", "window_shape"]
 
 TILE_SIZES = (2048, 1536, 1024, 768, 512, 384, 256, 192, 128)
 """Square tile sizes (core rows and columns) the memory guard tries besides full-width strips."""
