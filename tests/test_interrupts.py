@@ -7,6 +7,7 @@ that needs no JAX. Scenes are conftest's ``middeval3`` folders (24 rows, dispari
 
 from __future__ import annotations
 
+import gc
 import json
 import shlex
 import signal
@@ -118,6 +119,27 @@ def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, 
     assert (read_pfm(out) == 7).all() and [p.name for p in tmp_path.iterdir()] == ["d.pfm"]
 
 
+def _sigint_in_a_gc_callback() -> None:
+    """Ctrl-C as it often lands in JAX: its handler runs inside a garbage-collection callback,
+    which prints the ``KeyboardInterrupt`` as "Exception ignored" and drops it."""
+    fired = []
+
+    def callback(phase, info):
+        if not fired:
+            fired.append(phase)
+            signal.raise_signal(signal.SIGINT)  # the handler runs here, before it returns
+
+    dropped = []
+    hook, sys.unraisablehook = sys.unraisablehook, dropped.append
+    gc.callbacks.append(callback)
+    try:
+        gc.collect()
+    finally:
+        gc.callbacks.remove(callback)
+        sys.unraisablehook = hook
+    assert fired and [d.exc_type for d in dropped] == [KeyboardInterrupt]
+
+
 @pytest.fixture()
 def fake_method(monkeypatch, middeval3):
     """A method "fake" without JAX: disparity 3 everywhere; counts its calls per scene width."""
@@ -127,6 +149,8 @@ def fake_method(monkeypatch, middeval3):
         calls.append(left.shape[1])
         if getattr(fake, "interrupt_at", None) == len(calls):
             raise KeyboardInterrupt
+        if getattr(fake, "dropped_interrupt_at", None) == len(calls):
+            _sigint_in_a_gc_callback()
         return np.full(left.shape[:2], middeval3.shift, np.float32)
 
     monkeypatch.setitem(methods.PEERS, "fake", methods.Peer(fake, "a stand-in without JAX"))
@@ -150,6 +174,19 @@ def test_evaluate_interrupted_in_process_messages(tmp_path, run_cli, middeval3, 
     assert code == 130
     assert err.strip().splitlines()[-1] == ("sswjax: interrupted; nothing was saved (with -o DIR "
                                             "finished scenes are kept and --resume continues)")
+
+
+def test_a_ctrl_c_dropped_in_a_gc_callback_still_interrupts_after_the_scene(tmp_path, run_cli,
+                                                                          middeval3, fake_method):
+    root = middeval3(tmp_path / "MiddEval3")
+    out = tmp_path / "out"
+    fake_method.dropped_interrupt_at = 2
+    code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out])
+    assert code == 130, err
+    assert err.strip().splitlines()[-1].startswith(
+        f"sswjax: interrupted; 2 of 3 scene results are saved in {out}; continue with: ")
+    assert fake_method.calls == [40, 44]
+    assert sorted(p.name for p in (out / "fake").iterdir()) == ["Adirondack", "Teddy"]
 
 
 def test_evaluate_resume_recomputes_only_missing_or_damaged_scenes(tmp_path, run_cli, middeval3,

@@ -14,7 +14,8 @@ import argparse
 import sys
 
 from sswjax._files import first_line
-from sswjax.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, Interrupted, Parser
+from sswjax.cli.common import (EXIT_INTERRUPTED, EXIT_USAGE, Interrupted, Parser,
+                               remembered_interrupts)
 from sswjax.cli.demo import add_demo_command
 from sswjax.cli.download import add_download_command
 from sswjax.cli.evaluate import add_evaluate_command
@@ -62,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv
     cache = None if args.no_cache else enable_compilation_cache()
     try:
-        with repairing_cache(cache):
+        with repairing_cache(cache), remembered_interrupts():
             return args.run(args)
     except USER_ERRORS as error:
         if args.debug:

@@ -30,7 +30,8 @@ from sswjax.data.scaled import write_scaled_disparity
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "check_output_files",
            "check_outputs", "command_line", "disparity_writers", "gigabytes", "HelpFormatter",
-           "interrupt_flag", "Interrupted", "Parser", "resume_command", "uninterrupted",
+           "interrupt_flag", "Interrupted", "Parser", "raise_if_interrupted",
+           "remembered_interrupts", "resume_command", "uninterrupted",
            "write_disparity_map", "Writer"]
 
 Writer = Callable[[Path], object]
@@ -78,6 +79,44 @@ class Parser(argparse.ArgumentParser):
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C, carrying the one-line message shown to the user (what was kept, how to resume)."""
+
+
+_RECEIVED: list[int] = []
+"""SIGINTs received under :func:`remembered_interrupts` (the process has one SIGINT handler)."""
+
+
+@contextlib.contextmanager
+def remembered_interrupts():
+    """Within it, Ctrl-C raises ``KeyboardInterrupt`` where it lands, as Python's own handler
+    does, and is also remembered, so that :func:`raise_if_interrupted` raises it again.
+
+    Python runs a signal's handler in whatever Python code runs next. In JAX that is often a
+    garbage-collection callback, whose exceptions Python prints as "Exception ignored" and
+    drops: the loops over scenes and pairs would then run to the end and exit 0. They ask
+    :func:`raise_if_interrupted` after each result instead. Outside the main thread the block
+    runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(number, frame):
+        _RECEIVED.append(number)
+        raise KeyboardInterrupt
+
+    _RECEIVED.clear()
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        _RECEIVED.clear()
+
+
+def raise_if_interrupted() -> None:
+    """Raise ``KeyboardInterrupt`` if Ctrl-C was pressed under :func:`remembered_interrupts`
+    (its exception may have been dropped where it landed)."""
+    if _RECEIVED:
+        raise KeyboardInterrupt
 
 
 @contextlib.contextmanager

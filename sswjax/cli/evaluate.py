@@ -30,7 +30,8 @@ from tqdm import tqdm
 
 from sswjax._files import InputError, atomic_output, first_line
 from sswjax._version import __version__
-from sswjax.cli.common import Interrupted, command_line, resume_command, uninterrupted
+from sswjax.cli.common import (Interrupted, command_line, raise_if_interrupted, resume_command,
+                               uninterrupted)
 from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
                                 params_from_args)
 from sswjax.cli.record import RunRecord
@@ -237,6 +238,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
                             saved += 1
                     rows[i] = result
                     bar.update(1)
+                    raise_if_interrupted()  # a Ctrl-C that JAX's gc callback dropped
             if args.resume:
                 print(f"{name}: resumed {resumed} of {len(scenes)} scenes from "
                       f"{args.output / name}", file=sys.stderr)

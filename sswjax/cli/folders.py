@@ -31,7 +31,7 @@ from tqdm import tqdm
 from sswjax._files import InputError, first_line, same_file
 from sswjax._version import __version__
 from sswjax.api.match import match
-from sswjax.cli.common import Interrupted, command_line, resume_command
+from sswjax.cli.common import Interrupted, command_line, raise_if_interrupted, resume_command
 from sswjax.cli.distributed import (
     cache_folder,
     cluster_session,
@@ -204,6 +204,7 @@ def match_folders(args: argparse.Namespace) -> int:
                 else:
                     failed[outcome.name] = outcome.message
                 bar.update(1)
+                raise_if_interrupted()  # a Ctrl-C that JAX's gc callback dropped
     except KeyboardInterrupt:
         raise Interrupted(f"interrupted; {saved} of {len(pairs)} disparity maps are saved in "
                           f"{out}; continue with: {resume_command(command_line(args))}") from None

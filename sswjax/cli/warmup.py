@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from sswjax.api.warmup import warm_up
-from sswjax.cli.common import gigabytes
+from sswjax.cli.common import gigabytes, raise_if_interrupted
 from sswjax.cli.folders import IMAGE_SUFFIXES, image_size
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import (add_parameter_options, add_plan_options, params_from_args,
@@ -115,6 +115,7 @@ def run_warmup(args: argparse.Namespace) -> int:
         print(f"warmed {width}x{height}{' gray' if channels == 1 else ''}, disparities "
               f"{args.min_disp}..{args.min_disp + args.ndisp - 1}: "
               f"{time.perf_counter() - start:.1f} s", file=sys.stderr)
+        raise_if_interrupted()  # a Ctrl-C that JAX's gc callback dropped
     print(f"compiled {len(shapes)} shape{'s' if len(shapes) > 1 else ''} in "
           f"{time.perf_counter() - total:.1f} s")
     return 0
