@@ -193,7 +193,8 @@ print(json.dumps([codes, int(status[0]) * 1024]))
 """
 
 
-def test_a_pair_too_large_for_the_budget_is_matched_in_tiles_under_it(tmp_path, texture):
+def test_a_pair_too_large_for_the_budget_is_matched_in_tiles_under_it(tmp_path, texture,
+                                                                      user_environment):
     # 640 x 960 x 128 disparities, the cheap method with 4 semi-global paths: 1.40 GB whole by
     # the model, too much for 1.0 GB (the guard would cut it); in tiles of 256 it runs, its
     # peak (VmHWM of a fresh process) under the budget, and its map equals the tiles of 512's
@@ -213,7 +214,7 @@ def test_a_pair_too_large_for_the_budget_is_matched_in_tiles_under_it(tmp_path, 
             "--set", "aggregation.radius=1", "--set",
             'optimizer={"kind": "sgm", "paths": 4, "dtype": "uint8"}', "--strip-overlap", "32"]
     run = subprocess.run([sys.executable, "-c", PEAK, str(budget), *argv], capture_output=True,
-                         text=True, timeout=600, cwd=tmp_path, check=False)
+                         text=True, timeout=600, cwd=tmp_path, check=False, env=user_environment)
     assert run.returncode == 0, run.stderr
     codes, peak = json.loads(run.stdout.strip().splitlines()[-1])
     assert codes == [0, 0] and peak <= budget * 1e9, (peak, run.stderr)
