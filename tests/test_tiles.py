@@ -159,6 +159,26 @@ def test_memory_guard_prefers_cores_of_256_rows_to_thin_strips_that_compute_less
     assert estimate_peak_bytes(*shape, params=accurate, plan=last_resort) <= budget
 
 
+def test_memory_guard_prefers_tiles_with_the_whole_collar_to_thin_strips_with_less():
+    # docs/cluster.md: KITTI 2012 000103 under 1 GB, strips of 48 rows (collar capped at 48)
+    # changed 13.5 % of the map, tiles of 128 with the collar of 96 1.7 %
+    accurate, shape = sswjax.preset("accurate"), (376, 1241, 128)
+    thin = ExecutionPlan(strip_rows=48, strip_overlap=48)
+    tiles = ExecutionPlan(tile=128, strip_overlap=96)
+    budget = max(estimate_peak_bytes(*shape, params=accurate, plan=plan) for plan in (thin, tiles))
+    assert _computed_pixels(*shape, thin) < _computed_pixels(*shape, tiles)
+    fitted = plan_for_memory(*shape, params=accurate, limit=budget, local=False)
+    assert fitted.strip_overlap == ExecutionPlan().strip_overlap == 96
+    assert fitted.tile and not fitted.strip_rows
+    assert estimate_peak_bytes(*shape, params=accurate, plan=fitted) <= budget
+    # a budget that no whole collar fits still gets the thin strips that fit
+    budget = min(estimate_peak_bytes(*shape, params=accurate, plan=plan) for plan in
+                 [ExecutionPlan(tile=size) for size in TILE_SIZES]
+                 + [ExecutionPlan(strip_rows=rows) for rows in STRIP_HEIGHTS if 96 <= rows < 376]) - 1
+    last_resort = plan_for_memory(*shape, params=accurate, limit=budget, local=False)
+    assert 0 < last_resort.strip_rows < 96 and last_resort.strip_overlap == last_resort.strip_rows
+
+
 def test_tiles_of_a_local_method_equal_the_whole_image(tmp_path, run_cli, square_pair):
     # the cheap method sees a few pixels around each (census, box, medians) and, through the
     # left-right check, the disparities' columns either side: tiles with a collar reproduce
