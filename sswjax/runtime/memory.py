@@ -297,10 +297,9 @@ def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | Non
     With a plan of neither (the whole image) and an estimate above the bound, the pair is cut
     in the strips of :data:`STRIP_HEIGHTS` or the square tiles of
     :data:`~sswjax.runtime.tiles.TILE_SIZES` that fit, in the order of
-    :func:`~sswjax.runtime.tiles.tilings_by_work`: the whole collar first (it is capped at a
-    thin strip's height), then cores of 256 rows or more, then the fewest computed pixels; with
-    explicit strips or tiles, or when the whole image fits, the plan comes back unchanged.
-    Nothing fits:
+    :func:`~sswjax.runtime.tiles.tilings_by_work` (the whole collar, then cores of 256 rows or
+    more, then the fewest computed pixels); with explicit strips or tiles, or when the whole
+    image fits, the plan comes back unchanged. Nothing fits:
     :class:`MemoryEstimateError`, as :func:`check_memory` raises it.
 
     Parameters
