@@ -6,7 +6,8 @@ The graph reads these options (:mod:`sswjax.graph.refine`, :mod:`sswjax.graph.co
 :func:`~sswjax.stages.filters.side_window_median_filter`,
 :func:`~sswjax.stages.pyramid.halve_image`,
 :func:`~sswjax.stages.upsampling.upsample_disparity` and
-:func:`~sswjax.stages.smoothing.gated_bilateral_mean` (or its separable form,
+:func:`~sswjax.stages.smoothing.gated_bilateral_smoothing` (passes of
+:func:`~sswjax.stages.smoothing.gated_bilateral_mean` or its separable form,
 :func:`~sswjax.stages.smoothing.gated_bilateral_line_mean`).
 """
 
@@ -16,7 +17,7 @@ import jax.numpy as jnp
 
 from sswjax.config.fields import ConfigError, is_set, option
 from sswjax.config.parts import Part, register
-from sswjax.stages.smoothing import gated_bilateral_line_mean, gated_bilateral_mean
+from sswjax.stages.smoothing import gated_bilateral_smoothing
 
 __all__ = ["CoarseToFine", "GatedBilateralSmoothing", "SideWindowMedian"]
 
@@ -71,11 +72,8 @@ class GatedBilateralSmoothing(Part):
 
     def smooth(self, disparity, guide, limit):
         """float32 (H, W) map and (H, W, C) left image -> the smoothed map in [0, limit - 1]."""
-        options = dict(radius=self.radius, gate=self.gate, colour_scale=self.colour_scale)
-        for _ in range(self.iterations):
-            if self.separable:
-                for axis in (1, 0):
-                    disparity = gated_bilateral_line_mean(disparity, guide, axis=axis, **options)
-            else:
-                disparity = gated_bilateral_mean(disparity, guide, **options)
+        disparity = gated_bilateral_smoothing(disparity, guide, radius=self.radius, gate=self.gate,
+                                              colour_scale=self.colour_scale,
+                                              iterations=self.iterations,
+                                              separable=self.separable)
         return jnp.clip(disparity, 0, limit - 1)

@@ -25,7 +25,7 @@ from sswjax._checks import check_guide, check_map, check_rank
 from sswjax.stages.buffers import written_once
 from sswjax.stages.filters import edge_pad
 
-__all__ = ["gated_bilateral_line_mean", "gated_bilateral_mean"]
+__all__ = ["gated_bilateral_line_mean", "gated_bilateral_mean", "gated_bilateral_smoothing"]
 
 
 def gated_bilateral_mean(disparity: jax.Array, guide: jax.Array, *, radius: int, gate,
@@ -98,6 +98,45 @@ def gated_bilateral_line_mean(disparity: jax.Array, guide: jax.Array, *, radius:
                        offsets=offsets)
 
 
+def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius: int, gate,
+                              colour_scale, iterations: int, separable: bool) -> jax.Array:
+    """``iterations`` passes of :func:`gated_bilateral_mean`, or of a row then a column of
+    :func:`gated_bilateral_line_mean` each when ``separable``.
+
+    Takes float32 ``disparity`` (H, W) and ``guide`` (H, W, C) and ``radius``, ``gate`` and
+    ``colour_scale`` as :func:`gated_bilateral_mean`, ``iterations`` >= 1; returns float32
+    (H, W), the passes' result exactly.
+
+    The map is written to a buffer once, before the first pass
+    (:func:`~sswjax.stages.buffers.written_once`): XLA CPU fuses the stage before (the fill's
+    median sorting networks) into the edge padding of the first pass, whose concatenation it
+    runs element by element; with the map in a buffer first, ``accurate``'s whole graph took
+    15 % less on trainingQ Motorcycle and Teddy (docs/speed-and-memory.md); an
+    ``optimization_barrier`` does not survive XLA CPU's fusion passes. A pass's result
+    needs no buffer of its own: its exponentials are not fused into the next pass's readers,
+    and a buffer per pass cost ``fast`` (6 passes) about 10 % of its whole call on Motorcycle
+    and Teddy (docs/speed.md).
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> steps = jnp.repeat(jnp.arange(4.0), 2)[None].repeat(3, 0)
+    >>> out = gated_bilateral_smoothing(steps, jnp.zeros((3, 8, 1)), radius=1, gate=1.5,
+    ...                                 colour_scale=0.1, iterations=1, separable=False)
+    >>> [round(v, 2) for v in out[1].tolist()]
+    [0.0, 0.33, 0.67, 1.33, 1.67, 2.33, 2.67, 3.0]
+    """
+    options = dict(radius=radius, gate=gate, colour_scale=colour_scale)
+    disparity = written_once(disparity)
+    for _ in range(iterations):
+        if separable:
+            for axis in (1, 0):
+                disparity = gated_bilateral_line_mean(disparity, guide, axis=axis, **options)
+        else:
+            disparity = gated_bilateral_mean(disparity, guide, **options)
+    return disparity
+
+
 def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax.Array:
     """The gated, colour-weighted mean over the window ``offsets`` ``(dy, dx)``, each within
     ``radius``; shapes as :func:`gated_bilateral_mean`."""
@@ -106,12 +145,6 @@ def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax
     check_rank("guide", guide, 3)
     check_guide(guide, disparity)
     height, width = disparity.shape
-    # Written once: XLA CPU fuses the stage before (the side-window median's sorting networks)
-    # into the edge padding below, whose concatenation it runs element by element; with the
-    # map in a buffer first, accurate's whole graph took 15 % less on trainingQ Motorcycle and
-    # Teddy (docs/speed-and-memory.md). An optimization_barrier does not survive XLA CPU's
-    # fusion passes. The centre reads the same buffer.
-    disparity = written_once(disparity)
     disparities = edge_pad(disparity, radius)
     # Channels first, one plane each: a sum over a trailing channel axis ran 15x slower on XLA
     # CPU (as in stages.cost).
