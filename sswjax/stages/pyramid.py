@@ -1,11 +1,12 @@
 """Scale changes of images and cost volumes by a factor of two (for cross-scale optimisation).
 
 Array conventions (whole module): images are float32 ``(H, W, C)``; cost volumes are float32
-``(D, H, W)``, disparity first. Halving pads odd sizes by edge replication and averages 2 x 2
-blocks (2 x 2 x 2 for volumes, so a coarse disparity ``j`` stands for the fine disparities
-``2 j`` and ``2 j + 1``: the volume keeps its disparity units only in the spatial directions,
-see :func:`halve_volume`). Doubling is the inverse mapping, trilinear with the centres aligned:
-coarse pixel (or disparity) ``i`` sits at fine ``2 i + 0.5``.
+``(D, H, W)``, disparity first. Halving averages 2 x 2 blocks (2 x 2 x 2 for volumes, an odd
+last row, column or disparity paired with itself as if edge-replicated), so a coarse disparity
+``j`` stands for the fine disparities ``2 j`` and ``2 j + 1``: the volume keeps its disparity
+units only in the spatial directions, see :func:`halve_volume`. Doubling is the inverse
+mapping, trilinear with the centres aligned: coarse pixel (or disparity) ``i`` sits at fine
+``2 i + 0.5``.
 """
 
 from __future__ import annotations
@@ -18,14 +19,17 @@ from sswjax._checks import check_floating, check_rank
 __all__ = ["double_volume", "halve_image", "halve_volume"]
 
 
-def _pad_even(x: jax.Array, axes: tuple[int, ...]) -> jax.Array:
-    pad = [(0, x.shape[a] % 2 if a in axes else 0) for a in range(x.ndim)]
-    return jnp.pad(x, pad, mode="edge") if any(p for _, p in pad) else x
-
-
 def _mean_of_pairs(x: jax.Array, axis: int) -> jax.Array:
+    """Mean of the samples ``(2 i, 2 i + 1)`` along ``axis``; an odd last sample is paired
+    with itself (the edge replicated). The edge joins the half-size odd samples, not the input:
+    XLA CPU runs an edge padding of the whole image as a concatenation element by element
+    (6.7 ms of ``fast``'s 80 on trainingQ Motorcycle for the pair's one padded row and column).
+    """
     even = jax.lax.slice_in_dim(x, 0, None, 2, axis)
     odd = jax.lax.slice_in_dim(x, 1, None, 2, axis)
+    if x.shape[axis] % 2:
+        odd = jnp.concatenate([odd, jax.lax.slice_in_dim(x, x.shape[axis] - 1, None, 1, axis)],
+                              axis=axis)
     return 0.5 * (even + odd)
 
 
@@ -48,7 +52,6 @@ def halve_image(image: jax.Array) -> jax.Array:
     """
     check_rank("image", image, 3)
     check_floating("image", image)
-    image = _pad_even(image, (0, 1))
     return _mean_of_pairs(_mean_of_pairs(image, 0), 1)
 
 
@@ -74,7 +77,6 @@ def halve_volume(cost: jax.Array) -> jax.Array:
     """
     check_rank("cost", cost, 3)
     check_floating("cost", cost)
-    cost = _pad_even(cost, (0, 1, 2))
     return _mean_of_pairs(_mean_of_pairs(_mean_of_pairs(cost, 0), 1), 2)
 
 
