@@ -108,8 +108,8 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     (H, W), the passes' result exactly.
 
     The map is written to a buffer once, before the first pass
-    (:func:`~sswjax.stages.buffers.written_once`): XLA CPU fuses the stage before (the fill's
-    median sorting networks) into the edge padding of the first pass, whose concatenation it
+    (:func:`~sswjax.stages.buffers.written_once`): XLA CPU fuses the stage before (the side-window
+    median's sorting networks) into the edge padding of the first pass, whose concatenation it
     runs element by element; with the map in a buffer first, ``accurate``'s whole graph took
     15 % less on trainingQ Motorcycle and Teddy (docs/speed-and-memory.md); an
     ``optimization_barrier`` does not survive XLA CPU's fusion passes. A pass's result
