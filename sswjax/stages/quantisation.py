@@ -113,10 +113,14 @@ class PathSums(NamedTuple):
     scale : float32 scalar or None
         Quantisation steps per cost unit of int16 ``sums`` (the cost is ``sums / scale``);
         ``None`` for float32 sums, which are the cost.
+    carried : Seeds or None
+        With seeds given to the scans (:mod:`sswjax.stages.paths`): the vertical paths'
+        states captured for the neighbouring windows.
     """
 
     sums: jax.Array
     scale: Any
+    carried: Any = None
 
 
 def sum_planes(path_sums: PathSums, disparities) -> list[jax.Array]:

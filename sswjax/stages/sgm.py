@@ -38,13 +38,20 @@ import jax.numpy as jnp
 from jax import lax
 
 from sswjax._checks import check_floating, check_integer, check_rank, check_same_shape
-from sswjax.stages.bands import align_band, band_deltas
+from sswjax.stages.paths import Seeds, scan_axis, scan_band_axis, seeded_scan_axis
 from sswjax.stages.quantisation import PathSums, as_volume, quantisation, quantise, quantise_cost
 
-__all__ = ["PATH_COUNTS", "path_penalties", "semi_global", "semi_global_sums"]
+__all__ = ["PATH_COUNTS", "path_penalties", "semi_global", "semi_global_sums", "vertical_shifts"]
 
 PATH_COUNTS = (4, 8)
 """Supported numbers of paths."""
+
+
+def vertical_shifts(paths: int) -> tuple[int, ...]:
+    """The per-row column shifts of the paths scanned along the rows: the vertical one, and
+    with 8 paths the two diagonals (one :class:`~sswjax.stages.paths.Seeds` line each)."""
+    return (0,) if paths == 4 else (0, 1, -1)
+
 
 def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
     """``out[y, x] = image[y - dy, x - dx]`` on the last two axes, edge-replicated."""
@@ -110,140 +117,6 @@ def path_penalties(
     return p1_map, p2_map
 
 
-def _path_step(previous, cost, p1, p2, levels_step=None, delta=None):
-    """One step of Eq. 13 for a line of pixels: ``previous``, ``cost`` (D, N); ``p1``, ``p2`` (N,).
-
-    Float32 or int16 alike: the first and last disparities' missing neighbour is the disparity
-    itself (edge-replicated), which ``+ p1`` can never make the minimum, so no sentinel such as
-    ``inf`` (which int16 has not, and whose sum would overflow) is needed. A uint8 ``cost`` is
-    widened to ``previous``'s dtype and multiplied by ``levels_step`` (int16 steps per level).
-
-    ``delta`` (int32 (N,)): the lines are bands (:mod:`sswjax.stages.bands`) whose starts differ
-    by ``delta`` from the predecessor's; its band is realigned to the pixel's disparities, and a
-    disparity it did not search costs ``min + P2`` (reachable only by the jump).
-    """
-    if levels_step is not None:
-        cost = cost.astype(previous.dtype) * levels_step
-    lowest = previous.min(axis=0)
-    if delta is None:
-        below = jnp.concatenate([previous[:1], previous[:-1]])
-        above = jnp.concatenate([previous[1:], previous[-1:]])
-    else:
-        aligned = align_band(previous, delta, lowest + p2)
-        previous, below, above = aligned[1:-1], aligned[:-2], aligned[2:]
-    best = jnp.minimum(jnp.minimum(previous, jnp.minimum(below, above) + p1), lowest + p2)
-    return cost + best - lowest
-
-
-def _shift_line(line: jax.Array, dx: int) -> jax.Array:
-    """``out[:, x] = line[:, x - dx]`` with zeros shifted in (a path starting at the border)."""
-    if dx == 0:
-        return line
-    zeros = jnp.zeros_like(line[:, :1])
-    if dx > 0:
-        return jnp.concatenate([zeros, line[:, :-1]], axis=1)
-    return jnp.concatenate([line[:, 1:], zeros], axis=1)
-
-
-def _scan_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...], total: jax.Array | None,
-               *, levels_step=None, dtype=None) -> jax.Array:
-    """``total`` plus the paths along axis 1 of ``cost`` (D, S, N), forward then backward.
-
-    ``total`` None: the sum of these paths alone, in ``dtype`` (the forward loop writes its
-    lines without reading a zero sum). ``levels_step``: see :func:`_path_step`.
-
-    ``shifts`` are the per-step shifts along N of the paths (0 straight, +-1 diagonal);
-    ``penalties[(forward, shift)]`` are their (P1, P2) maps, (S, N) each. A line is the (D, N)
-    slice at one step: D runs of N contiguous values, read without transposing the volume.
-    Each step reads the line of ``total`` it reaches, adds its paths and writes it back in
-    place (a loop-carried buffer that XLA updates without copying), so the sum of every path of
-    both axes needs one volume besides the inputs.
-    """
-    steps = cost.shape[1]
-
-    def run(total, reverse):
-        pens = {shift: penalties[(not reverse, shift)] for shift in shifts}
-
-        def step(i, state):
-            lines, total = state
-            s = steps - 1 - i if reverse else i
-            line_cost = lax.dynamic_index_in_dim(cost, s, axis=1, keepdims=False)
-            partial = (None if fresh and not reverse
-                       else lax.dynamic_index_in_dim(total, s, axis=1, keepdims=False))
-            new = []
-            for k, shift in enumerate(shifts):
-                p1, p2 = (lax.dynamic_index_in_dim(m, s, keepdims=False) for m in pens[shift])
-                line = _path_step(_shift_line(lines[k], -shift if reverse else shift),
-                                  line_cost, p1, p2, levels_step)
-                new.append(line)
-                partial = line if partial is None else partial + line
-            return tuple(new), lax.dynamic_update_index_in_dim(total, partial, s, axis=1)
-
-        start = tuple(jnp.zeros(cost[:, 0].shape, total.dtype) for _ in shifts)
-        return lax.fori_loop(0, steps, step, (start, total))[1]
-
-    fresh = total is None
-    if fresh:
-        total = jnp.zeros(cost.shape, cost.dtype if dtype is None else dtype)
-    return run(run(total, False), True)
-
-
-def _scan_band_axis(cost: jax.Array, penalties: dict, shifts: tuple[int, ...],
-                    total: jax.Array | None, starts: jax.Array, *, levels_step=None,
-                    dtype=None) -> jax.Array:
-    """:func:`_scan_axis` of a band volume ``cost`` (K, S, N) with first disparities
-    ``starts`` (int32 (S, N)): each step realigns the predecessor's band
-    (:func:`~sswjax.stages.bands.band_deltas`).
-
-    A band's lines are small, and on XLA CPU each iteration of a loop has a fixed cost that they
-    do not hide: step ``i`` advances the forward paths to line ``i`` and the backward ones to
-    line ``S - 1 - i``, side by side in lines of 2N, in half the iterations; each direction
-    writes into a buffer of its own (one in-place update per buffer and step), added to
-    ``total`` at the end. (Reversing the volume instead, ``jnp.flip``, cost more than the
-    paths.)
-    """
-    steps, size = cost.shape[1:]
-
-    def paired(forward_map, backward_map):  # (S, N) maps, the backward one read reversed
-        return jnp.concatenate([forward_map, backward_map[::-1]], axis=-1)
-
-    pens = {shift: tuple(paired(a, b) for a, b in zip(penalties[(True, shift)],
-                                                       penalties[(False, shift)]))
-            for shift in shifts}
-    deltas = {shift: paired(band_deltas(starts, shift, True),
-                            band_deltas(starts, -shift, False)) for shift in shifts}
-    sum_dtype = (cost.dtype if dtype is None else dtype) if total is None else total.dtype
-
-    def along(line, shift):
-        # The forward half steps by +shift along N, the backward half by -shift.
-        return jnp.concatenate([_shift_line(line[:, :size], shift),
-                                _shift_line(line[:, size:], -shift)], axis=1)
-
-    def step(i, state):
-        lines, forward, backward = state
-        back = steps - 1 - i
-        line_cost = jnp.concatenate([lax.dynamic_index_in_dim(cost, i, axis=1, keepdims=False),
-                                     lax.dynamic_index_in_dim(cost, back, axis=1,
-                                                              keepdims=False)], axis=1)
-        partial = None
-        new = []
-        for k, shift in enumerate(shifts):
-            p1, p2 = (lax.dynamic_index_in_dim(m, i, keepdims=False) for m in pens[shift])
-            delta = lax.dynamic_index_in_dim(deltas[shift], i, keepdims=False)
-            line = _path_step(along(lines[k], shift), line_cost, p1, p2, levels_step, delta)
-            new.append(line)
-            partial = line if partial is None else partial + line
-        forward = lax.dynamic_update_index_in_dim(forward, partial[:, :size], i, axis=1)
-        backward = lax.dynamic_update_index_in_dim(backward, partial[:, size:], back, axis=1)
-        return tuple(new), forward, backward
-
-    start = tuple(jnp.zeros((cost.shape[0], 2 * size), sum_dtype) for _ in shifts)
-    buffers = (jnp.zeros(cost.shape, sum_dtype), jnp.zeros(cost.shape, sum_dtype))
-    _, forward, backward = lax.fori_loop(0, steps, step, (start, *buffers))
-    result = forward + backward
-    return result if total is None else total + result
-
-
 def semi_global(cost: jax.Array, guide: jax.Array, **options) -> jax.Array:
     """Semi-global aggregation of a cost volume: the sum of ``paths`` path costs (Eq. 13-14).
 
@@ -283,6 +156,7 @@ def semi_global_sums(
     cost_bound=None,
     cost_levels=None,
     starts: jax.Array | None = None,
+    seeds: Seeds | None = None,
 ) -> PathSums:
     """:func:`semi_global` as the scans leave it: int16 sums with ``cost_bound``, unconverted.
 
@@ -324,11 +198,15 @@ def semi_global_sums(
         each step realigns the predecessor's band to the pixel's, and a disparity outside the
         predecessor's band is reached only by the P2 jump (the tSGM of Rothermel et al. 2012).
         With every start 0 it is the full volume's recursion.
+    seeds : Seeds, optional
+        The vertical and diagonal paths carried in from the windows above and below
+        (:mod:`sswjax.stages.paths`; lines (D, W) in the sums' dtype); not with ``starts``.
 
     Returns
     -------
     PathSums
-        ``sums`` (D, H, W), int16 with ``cost_bound``, else float32.
+        ``sums`` (D, H, W), int16 with ``cost_bound``, else float32; with ``seeds``, their
+        states captured in ``carried``.
 
     Examples
     --------
@@ -348,6 +226,8 @@ def semi_global_sums(
     if starts is not None:
         check_integer("starts", starts)
         check_same_shape("starts", starts, "cost plane", cost[0])
+        if seeds is not None:
+            raise ValueError("seeds carry the paths of a full volume, not of a band (starts)")
 
     if cost_bound is None:
         check_floating("cost", cost)
@@ -375,7 +255,7 @@ def semi_global_sums(
 
     # Vertical and diagonal paths along H on the volume as it is, (D, N = W) lines; the
     # horizontal ones along W on its planes transposed, (D, W, H), (D, N = H) lines.
-    shifts = (0,) if paths == 4 else (0, 1, -1)
+    shifts = vertical_shifts(paths)
     pens = {}
     for shift in shifts:
         pens[(True, shift)] = penalties((1, shift), False)
@@ -385,14 +265,18 @@ def semi_global_sums(
     # back. The transposed copy is made before the loops, so the float32 volume is released.
     work, columns = lax.optimization_barrier((work, jnp.transpose(work, (0, 2, 1))))
     sum_dtype = jnp.float32 if scale is None else jnp.int16
+    carried = None
     if starts is None:
-        total = _scan_axis(columns, pens_h, (0,), None, levels_step=levels_step,
-                           dtype=sum_dtype)
-        total = _scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
-                           levels_step=levels_step)
+        total = scan_axis(columns, pens_h, (0,), None, levels_step=levels_step, dtype=sum_dtype)
+        if seeds is None:
+            total = scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
+                              levels_step=levels_step)
+        else:
+            total, carried = seeded_scan_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)),
+                                              seeds, levels_step=levels_step)
     else:
-        total = _scan_band_axis(columns, pens_h, (0,), None, starts.T,
-                                levels_step=levels_step, dtype=sum_dtype)
-        total = _scan_band_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)), starts,
-                                levels_step=levels_step)
-    return PathSums(total, scale)
+        total = scan_band_axis(columns, pens_h, (0,), None, starts.T,
+                               levels_step=levels_step, dtype=sum_dtype)
+        total = scan_band_axis(work, pens, shifts, jnp.transpose(total, (0, 2, 1)), starts,
+                               levels_step=levels_step)
+    return PathSums(total, scale, carried)

@@ -1,4 +1,5 @@
-"""Tests for sswjax.stages.sgm against a float64 NumPy reference of Hirschmuller's recursion."""
+"""Tests for sswjax.stages.sgm against a float64 NumPy reference of Hirschmuller's recursion, and
+for the paths carried across row windows (sswjax.stages.paths): the whole image's sums."""
 
 import jax
 import jax.numpy as jnp
@@ -6,8 +7,9 @@ import numpy as np
 import pytest
 
 from sswjax.graph.volume import fold_volume
+from sswjax.stages.paths import Seeds, no_seeds
 from sswjax.stages.quantisation import as_volume, quantisation, quantise_cost, sum_planes
-from sswjax.stages.sgm import path_penalties, semi_global, semi_global_sums
+from sswjax.stages.sgm import path_penalties, semi_global, semi_global_sums, vertical_shifts
 
 DIRECTIONS = {4: [(0, 1), (0, -1), (1, 0), (-1, 0)],
               8: [(0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, -1), (-1, 1)]}
@@ -274,3 +276,96 @@ def test_a_band_that_is_the_whole_range_is_the_full_recursion(paths):
     full = semi_global_sums(cost, guide, **options).sums
     band = semi_global_sums(cost, guide, starts=jnp.zeros((5, 8), jnp.int32), **options).sums
     np.testing.assert_allclose(band, full, atol=1e-6)
+
+
+CARRIED_OPTIONS = dict(p1=0.1, p2=0.6, sigma=0.2)
+
+
+def _windows(height, core, overlap):
+    """(top, first, last) of row windows of ``core`` rows with ``overlap`` rows either side."""
+    size = core + 2 * overlap
+    spans = []
+    for first in range(0, height, core):
+        top = min(max(first - overlap, 0), height - size)
+        spans.append((top, first, min(first + core, height)))
+    return size, spans
+
+
+def _carried_sums(cost, guide, paths, core, overlap, **options):
+    """The sums of each row window with its vertical paths carried from its neighbours, stitched
+    by cores: a sweep down keeps the forward states each window leaves for the next, a sweep up
+    runs each window with them and with the backward states of the window below."""
+    ndisp, height, width = cost.shape
+    size, spans = _windows(height, core, overlap)
+    last, enter = len(spans) - 1, overlap // 2
+    run = jax.jit(lambda c, g, s: semi_global_sums(c, g, paths=paths, seeds=s, **options))
+    dtype = jnp.float32 if options.get("cost_bound") is None else jnp.int16
+    zero = no_seeds((ndisp, width), len(vertical_shifts(paths)), dtype)
+
+    def window(k, seeds):
+        top = spans[k][0]
+        return run(cost[:, top:top + size], guide[top:top + size], seeds)
+
+    def gap(k):  # rows from window k's top to window k + 1's
+        return spans[k + 1][0] - spans[k][0]
+
+    left_below = [None] * len(spans)  # the forward states window k leaves for window k + 1
+    forward = zero.forward
+    for k in range(last):
+        seeds = zero._replace(forward=forward, entry=jnp.array([enter if k else 0, 0]),
+                              capture=jnp.array([gap(k) + enter - 1, 0]))
+        forward = left_below[k] = window(k, seeds).carried.forward
+    out, backward = np.zeros(cost.shape, np.float64), zero.backward
+    for k in range(last, -1, -1):
+        seeds = Seeds(left_below[k - 1] if k else zero.forward, backward,
+                      jnp.array([enter if k else 0, enter if k < last else 0]),
+                      jnp.array([0, gap(k - 1) + enter - 1 if k else 0]))
+        result = window(k, seeds)
+        backward = result.carried.backward
+        sums = np.asarray(result.sums, np.float64)  # as the scans leave them (int16 unscaled)
+        top, first, stop = spans[k]
+        out[:, first:stop] = sums[:, first - top:stop - top]
+    return out
+
+
+def _problem(seed, ndisp, height, width, channels=3):
+    """A random float32 cost volume (ndisp, height, width) and guide (height, width, C)."""
+    rng = np.random.default_rng(seed)
+    return (rng.random((ndisp, height, width)).astype(np.float32),
+            rng.random((height, width, channels)).astype(np.float32))
+
+
+@pytest.mark.parametrize("paths", [4, 8])
+def test_carried_paths_give_the_whole_images_sums(paths):
+    cost, guide = _problem(paths, 5, 29, 9)
+    ours = _carried_sums(jnp.asarray(cost), jnp.asarray(guide), paths, core=5, overlap=4,
+                         **CARRIED_OPTIONS)
+    reference = semi_global_reference(cost, guide, 0.1, 0.6, 0.2, paths)
+    np.testing.assert_allclose(ours, reference, atol=1e-4, rtol=1e-5)
+
+
+def test_carried_int16_paths_equal_the_whole_images_exactly():
+    cost, guide = (jnp.asarray(a) for a in _problem(3, 6, 40, 11, 1))
+    whole = semi_global_sums(cost, guide, paths=4, cost_bound=1.0, **CARRIED_OPTIONS)
+    ours = _carried_sums(cost, guide, 4, core=7, overlap=6, cost_bound=1.0, **CARRIED_OPTIONS)
+    assert np.array_equal(ours, np.asarray(whole.sums, np.float64))
+
+
+def test_uncarried_windows_differ_from_the_whole_image():
+    # The test above can fail: cut without seeds, the vertical paths restart in each window.
+    cost, guide = _problem(4, 5, 29, 9)
+    size, spans = _windows(29, 5, 4)
+    cut = np.zeros(cost.shape)
+    for top, first, last in spans:
+        window = semi_global_sums(jnp.asarray(cost[:, top:top + size]),
+                                  jnp.asarray(guide[top:top + size]), paths=4, **CARRIED_OPTIONS)
+        cut[:, first:last] = np.asarray(window.sums)[:, first - top:last - top]
+    assert not np.allclose(cut, semi_global_reference(cost, guide, 0.1, 0.6, 0.2, 4), atol=1e-3)
+
+
+def test_no_seeds_are_the_unseeded_scan():
+    cost, guide = (jnp.asarray(a) for a in _problem(5, 4, 10, 6, 1))
+    plain = semi_global_sums(cost, guide, paths=8, cost_bound=1.0, **CARRIED_OPTIONS)
+    seeded = semi_global_sums(cost, guide, paths=8, cost_bound=1.0,
+                              seeds=no_seeds((4, 6), 3, jnp.int16), **CARRIED_OPTIONS)
+    assert np.array_equal(plain.sums, seeded.sums) and plain.carried is None
