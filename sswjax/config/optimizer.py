@@ -10,12 +10,13 @@ or the :class:`~sswjax.stages.sgm.PathSums` that the selection reads plane by pl
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 
 from sswjax.config.fields import ConfigError, Softplus, is_set, option, stage_config
 from sswjax.config.parts import Part, register
 from sswjax.stages.quantisation import SGM_DTYPES, PathSums, Quantisation, quantisation
 from sswjax.stages.cross_scale import half_resolution_semi_global
-from sswjax.stages.sgm import PATH_COUNTS, semi_global_sums
+from sswjax.stages.sgm import PATH_COUNTS, semi_global_sums, vertical_shifts
 
 __all__ = ["HalfResolutionSemiGlobal", "Optimizer", "SemiGlobal"]
 
@@ -31,11 +32,15 @@ class Optimizer(Part):
     uses_segments = False
     subpixel_on_input = False
     searches_bands = False
+    carries_paths = False
 
-    def optimise(self, cost, guide, *, labels, cost_bound, starts=None) -> PathSums | jax.Array:
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None,
+                 seeds=None) -> PathSums | jax.Array:
         """The optimised volume (module docstring); with ``starts`` (int32 (H, W)) ``cost`` is
         a band volume (:mod:`sswjax.stages.bands`), for the optimisers that
-        ``searches_bands``."""
+        ``searches_bands``; with ``seeds`` (:class:`~sswjax.stages.paths.Seeds`) the paths
+        along the rows come from the neighbouring windows, for those that ``carries_paths``
+        (their states for the neighbours in the result's ``carried``)."""
         raise NotImplementedError
 
     def storage(self, cost_bound) -> Quantisation | None:
@@ -78,6 +83,7 @@ class SemiGlobal(_Penalties):
 
     uses_segments = True
     searches_bands = True
+    carries_paths = True
 
     def validate(self, params) -> None:
         """The segment factor acts only with superpixels."""
@@ -85,13 +91,19 @@ class SemiGlobal(_Penalties):
             raise ConfigError("optimizer.segment_factor", "parameter optimizer.segment_factor "
                               "acts only with superpixels (segments is None)")
 
-    def optimise(self, cost, guide, *, labels, cost_bound, starts=None):
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None, seeds=None):
         """:func:`~sswjax.stages.sgm.semi_global_sums` (PathSums), over bands with
-        ``starts``."""
+        ``starts``, carried in and out with ``seeds``."""
         return semi_global_sums(cost, guide, p1=self.p1, p2=self.p2, sigma=self.sigma,
                                 paths=self.paths, labels=labels,
                                 segment_factor=self.segment_factor, starts=starts,
-                                **self._quantisation(cost_bound))
+                                seeds=seeds, **self._quantisation(cost_bound))
+
+    def seed_lines(self, cost_bound) -> tuple[int, object]:
+        """How many :class:`~sswjax.stages.paths.Seeds` lines each direction carries, and
+        their dtype (that of the sums)."""
+        dtype = jnp.float32 if self._quantisation(cost_bound)["cost_bound"] is None else jnp.int16
+        return len(vertical_shifts(self.paths)), dtype
 
     def storage(self, cost_bound):
         """The :func:`~sswjax.stages.sgm.quantisation` of the paths (None for float32)."""
@@ -111,7 +123,7 @@ class HalfResolutionSemiGlobal(_Penalties):
 
     subpixel_on_input = True
 
-    def optimise(self, cost, guide, *, labels, cost_bound, starts=None):
+    def optimise(self, cost, guide, *, labels, cost_bound, starts=None, seeds=None):
         """:func:`~sswjax.stages.cross_scale.half_resolution_semi_global` (float32 volume)."""
         return half_resolution_semi_global(cost, guide, p1=self.p1, p2=self.p2,
                                            sigma=self.sigma, paths=self.paths,

@@ -6,13 +6,14 @@
 ``volume``  the scene a call shares; the volume built in blocks, optimised, folded into winners
 ``refine``  sub-pixel fit, the checks, the fill, the median (Eq. 8-9)
 ``coarse``  coarse-to-fine: the method on the pair halved, the map doubled back
-``match``   the jitted entry points: ``ssw_disparity``, ``ssw_outputs``, ``ssw_cues``
+``match``   the jitted entry points: ``ssw_disparity``, ``ssw_outputs``, ``ssw_cues``, and
+            ``ssw_carried`` (the paths' states a window of row strips leaves)
 ==========  =====================================================================================
 """
 
-from sswjax.graph.match import (DEFAULT_CHUNK, SSWOutputs, aggregated_cost, ssw_cues, ssw_disparity,
-                                ssw_outputs)
+from sswjax.graph.match import (DEFAULT_CHUNK, SSWOutputs, aggregated_cost, carries_paths,
+                                ssw_carried, ssw_cues, ssw_disparity, ssw_outputs)
 from sswjax.graph.scopes import Stage
 
-__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "Stage", "aggregated_cost", "ssw_cues", "ssw_disparity",
-           "ssw_outputs"]
+__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "Stage", "aggregated_cost", "carries_paths", "ssw_carried",
+           "ssw_cues", "ssw_disparity", "ssw_outputs"]

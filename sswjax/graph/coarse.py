@@ -49,8 +49,8 @@ def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndis
     coarse_limit = None if valid_ndisp is None else jnp.minimum(valid_ndisp // 2 + 1, coarse_ndisp)
     inner = params.replace(coarse=coarse.replace(levels=coarse.levels - 1)
                            if coarse.levels > 1 else None)
-    disparity, cues = match(small_left, small_right, inner, coarse_ndisp, coarse_limit,
-                            valid_shape=coarse_shape)
+    disparity, cues, _ = match(small_left, small_right, inner, coarse_ndisp, coarse_limit,
+                               valid_shape=coarse_shape)
     shape = left.shape[:2]
     with scope(Stage.UPSAMPLING):
         disparity = upsample_disparity(padding_as_edge(disparity, coarse_shape), left, small_left,

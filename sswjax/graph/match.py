@@ -22,12 +22,13 @@ from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
 from sswjax.graph.padding import padding_as_edge
 from sswjax.graph.scopes import Stage, scope
-from sswjax.graph.volume import (Selected, aggregate_slices, prepare_scene, select_optimised,
-                                 streamed_winners)
+from sswjax.graph.volume import (Selected, aggregate_slices, optimised_volume, prepare_scene,
+                                 select_optimised, streamed_winners)
 from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
+from sswjax.stages.paths import Seeds
 
-__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "aggregated_cost", "check_pair", "match_maps",
-           "ssw_cues", "ssw_disparity", "ssw_outputs"]
+__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "aggregated_cost", "carries_paths", "check_carried",
+           "check_pair", "match_maps", "ssw_carried", "ssw_cues", "ssw_disparity", "ssw_outputs"]
 
 DEFAULT_CHUNK = 4
 """Disparities per block of the volume's scans: memory for about ``3 K`` slices instead of the
@@ -68,17 +69,22 @@ def aggregated_cost(left: jax.Array, right: jax.Array, params: Params, *, ndisp:
 
 
 def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int, *,
-               valid_shape=None) -> tuple[jax.Array, ConfidenceCues]:
-    """The body of :func:`ssw_disparity`: the map and its confidence cues.
+               valid_shape=None, seeds=None) -> tuple[jax.Array, ConfidenceCues, object]:
+    """The body of :func:`ssw_disparity`: the map, its confidence cues and, with ``seeds``
+    (:class:`~sswjax.stages.paths.Seeds`), the paths' states for the neighbouring windows
+    (else None).
 
     Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
     optimiser the volume is stored, optimised and folded; without one each block is folded
     as soon as it is aggregated. With a band, the method then runs again over a few
-    disparities around that map (:mod:`sswjax.graph.band`).
+    disparities around that map (:mod:`sswjax.graph.band`). Seeds carry the paths of the
+    second way only (:func:`check_carried`).
     """
     check_pair(left, right, ndisp)
+    if seeds is not None:
+        check_carried(params)
     limit = ndisp if valid_ndisp is None else valid_ndisp
-    scene = None
+    scene = carried = None
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
         # The smoothing acts once, on the full-resolution map; the band at every level that
@@ -94,7 +100,8 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
                                                  chunk=chunk))
         else:
             selected = select_optimised(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                                        chunk=chunk)
+                                        chunk=chunk, seeds=seeds)
+        carried = selected.carried
         disparity, cues = refine(selected, scene, params, limit)
     # The band and the smoothing filter the map: each reads it with a bucket's padding holding
     # the edge, as at the pair's own size (a coarser level's caller copies the edge itself).
@@ -107,12 +114,27 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
         with scope(Stage.SMOOTHING):
             disparity = params.smoothing.smooth(padding_as_edge(disparity, valid_shape), left,
                                                 limit)
-    return disparity, cues
+    return disparity, cues, carried
+
+
+def carries_paths(params: Params) -> bool:
+    """Whether windows of ``params``' method can carry the semi-global paths along the rows
+    from one to the next (:mod:`sswjax.stages.paths`): a full-resolution volume (no
+    coarse-to-fine, no band) optimised by an optimiser that ``carries_paths``."""
+    return (params.coarse is None and params.band is None and params.optimizer is not None
+            and params.optimizer.carries_paths)
+
+
+def check_carried(params: Params) -> None:
+    """Raise ``ValueError`` (one line) unless :func:`carries_paths`."""
+    if not carries_paths(params):
+        raise ValueError("seeds carry the semi-global paths of a full-resolution volume: this "
+                         "method has no such optimiser, or runs coarse-to-fine or in a band")
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
 def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
-                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None) -> jax.Array:
+                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None, seeds=None):
     """The whole SSW method as one jitted pure function.
 
     The static options of ``params`` and its choice of stages are pytree structure, so
@@ -136,12 +158,19 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
         Traced height and width of the pair within images padded to a shape bucket (default:
         the whole images): the padding holds no evidence (its matching cost is the border
         value at every disparity).
+    seeds : Seeds, optional
+        The pair is a window of row strips: its semi-global paths along the rows enter from
+        the windows above and below (:mod:`sswjax.stages.paths`, :func:`carries_paths`).
 
     Returns
     -------
-    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
+    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1];
+    with ``seeds``, the pair ``(disparity, carried)``, ``carried`` the :class:`Seeds` the
+    paths left for the neighbours.
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape=valid_shape)[0]
+    disparity, _, carried = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
+                                       valid_shape=valid_shape, seeds=seeds)
+    return disparity if seeds is None else (disparity, carried)
 
 
 class SSWOutputs(NamedTuple):
@@ -156,12 +185,13 @@ class SSWOutputs(NamedTuple):
 
 # A stored graph's results are a pytree jax.export writes by this name (sswjax.runtime.stored).
 jax.export.register_namedtuple_serialization(SSWOutputs, serialized_name="sswjax.SSWOutputs")
+jax.export.register_namedtuple_serialization(Seeds, serialized_name="sswjax.Seeds")
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
 def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
                 valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE,
-                valid_shape=None) -> SSWOutputs:
+                valid_shape=None, seeds=None):
     """:func:`ssw_disparity` with the confidence of each pixel, in one jitted graph.
 
     The same graph as :func:`ssw_disparity` (which keeps only the map; ``jit`` drops the rest)
@@ -169,7 +199,7 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
 
     Parameters
     ----------
-    left, right, params, ndisp, valid_ndisp, chunk, valid_shape
+    left, right, params, ndisp, valid_ndisp, chunk, valid_shape, seeds
         As for :func:`ssw_disparity`.
     measure : str
         A key of :data:`sswjax.stages.confidence.MEASURES` (static).
@@ -177,7 +207,8 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     Returns
     -------
     SSWOutputs
-        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed.
+        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed; with
+        ``seeds``, the pair ``(outputs, carried)``.
 
     Examples
     --------
@@ -187,9 +218,10 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     >>> out.confidence.shape, str(out.confidence.dtype)
     ((40, 48), 'float32')
     """
-    disparity, cues = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
-                                 valid_shape=valid_shape)
-    return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
+    disparity, cues, carried = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
+                                          valid_shape=valid_shape, seeds=seeds)
+    outputs = SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
+    return outputs if seeds is None else (outputs, carried)
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
@@ -203,4 +235,30 @@ def ssw_cues(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, v
     -------
     (float32 (H, W), ConfidenceCues)
     """
-    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape=valid_shape)
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk, valid_shape=valid_shape)[:2]
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def ssw_carried(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int, seeds,
+                valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None):
+    """Only the paths' states a window of row strips leaves for its neighbours: the cost,
+    the aggregation and the optimiser of :func:`ssw_disparity` with ``seeds``, nothing after
+    (the first sweep of :mod:`sswjax.runtime.carried`, which needs the forward states of
+    every window before the maps of any).
+
+    Parameters
+    ----------
+    left, right, params, ndisp, valid_ndisp, chunk, valid_shape, seeds
+        As for :func:`ssw_disparity`; ``seeds`` required.
+
+    Returns
+    -------
+    Seeds
+        The states captured where ``seeds`` say (:mod:`sswjax.stages.paths`).
+    """
+    check_pair(left, right, ndisp)
+    check_carried(params)
+    scene = prepare_scene(left, right, params, valid_shape=valid_shape)
+    _, optimised = optimised_volume(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
+                                    chunk=chunk, seeds=seeds)
+    return optimised.carried

@@ -73,11 +73,14 @@ class Selected(NamedTuple):
         The costs of the sub-pixel fit when they come from another volume than the winners'.
     aggregated_right : int32 (H, W) or None
         The right view's winners of the aggregated cost before the optimiser.
+    carried : Seeds or None
+        The optimiser's path states for the neighbouring windows, when it was given seeds.
     """
 
     winners: Winners
     parabola: tuple | None = None
     aggregated_right: jax.Array | None = None
+    carried: object = None
 
 
 def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
@@ -148,7 +151,7 @@ def cost_bound(params: Params):
 
 
 def optimised_volume(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=None,
-                     chunk: int) -> tuple[jax.Array, PathSums | jax.Array]:
+                     chunk: int, seeds=None) -> tuple[jax.Array, PathSums | jax.Array]:
     """The aggregated volume as the optimiser stores it and the optimiser's result.
 
     Parameters
@@ -163,6 +166,9 @@ def optimised_volume(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
         paths never pass through them.
     chunk : int
         Disparities per block of the aggregation (0: at once).
+    seeds : Seeds, optional
+        The paths along the rows carried in from the windows above and below
+        (:mod:`sswjax.stages.paths`), for an optimiser that ``carries_paths``.
 
     Returns
     -------
@@ -183,17 +189,22 @@ def optimised_volume(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
                          high if store is None else store(high))
     with scope(Stage.OPTIMIZATION):
         labels = scene.labels if scene.num_segments else None
-        optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound)
+        if seeds is None:
+            optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound)
+        else:
+            optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound,
+                                           seeds=seeds)
     return cost, optimised
 
 
 def select_optimised(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=None,
-                     chunk: int) -> Selected:
+                     chunk: int, seeds=None) -> Selected:
     """The winners of the optimised volume and, as the checks ask, the right view of the
-    aggregated one; the parabola's costs from the aggregated volume when the optimiser asks."""
+    aggregated one; the parabola's costs from the aggregated volume when the optimiser asks;
+    the paths' states for the neighbouring windows with ``seeds``."""
     limit = ndisp if valid_ndisp is None else valid_ndisp
     cost, optimised = optimised_volume(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                                       chunk=chunk)
+                                       chunk=chunk, seeds=seeds)
     aggregated_right = None
     if params.checks is not None and params.checks.aggregated_gap > 0:
         # Disparities at and beyond the range are excluded by the view itself, so it reads
@@ -202,7 +213,8 @@ def select_optimised(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
     winners = fold_volume(optimised, limit, chunk)
     parabola = (costs_around(cost, winners.disparity)
                 if params.optimizer.subpixel_on_input else None)
-    return Selected(winners, parabola, aggregated_right)
+    carried = optimised.carried if isinstance(optimised, PathSums) else None
+    return Selected(winners, parabola, aggregated_right, carried)
 
 
 def _fold(state: Winners, slices, first, limit) -> Winners:
