@@ -20,8 +20,7 @@ its table is in ``docs/speed-and-memory.md``. The terms:
 ``slic``
     ``h * w`` again when SLIC runs (``params.segments`` is set).
 ``blocks``
-    ``h * W * min(K, D)`` with ``K = plan.disparity_chunk``: the blocks of cost slices in flight when
-    the paper's selection folds them as they come.
+    ``h * W * min(K, D)``, ``K = plan.disparity_chunk``: the cost blocks the paper's fold holds.
 ``volume``
     ``h * W * D`` when a whole volume is aggregated at once (``plan.disparity_chunk = 0``).
 ``sgm``
@@ -50,6 +49,7 @@ import os
 from pathlib import Path
 
 from sswjax.config import Params, default_params
+from sswjax.graph import carries_paths
 from sswjax.runtime.buckets import bucket_shape
 from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align, tiling_words
 from sswjax.runtime.tiles import tilings_by_work, window_shape
@@ -297,10 +297,9 @@ def plan_for_memory(height: int, width: int, ndisp: int, *, params: Params | Non
     With a plan of neither (the whole image) and an estimate above the bound, the pair is cut
     in the strips of :data:`STRIP_HEIGHTS` or the square tiles of
     :data:`~sswjax.runtime.tiles.TILE_SIZES` that fit, in the order of
-    :func:`~sswjax.runtime.tiles.tilings_by_work` (the whole collar, then cores of 256 rows or
-    more, then the fewest computed pixels); with explicit strips or tiles, or when the whole
-    image fits, the plan comes back unchanged. Nothing fits:
-    :class:`MemoryEstimateError`, as :func:`check_memory` raises it.
+    :func:`~sswjax.runtime.tiles.tilings_by_work` (strips first when the paths are carried; the
+    whole collar; cores of 256 rows; the fewest pixels); with explicit strips or tiles, or when
+    the whole image fits, the plan as it is. Nothing fits: :class:`MemoryEstimateError`.
 
     Parameters
     ----------
@@ -349,7 +348,7 @@ def _assess(shape, params, plan, channels, bound, *, choose: bool,
     limit, what = bound
     if limit is None or estimated <= limit:
         return estimated, plan
-    fitting = _cheapest_tiling(shape, plan, limit, estimate)
+    fitting = _cheapest_tiling(shape, plan, params, limit, estimate)
     if choose and fitting is not None and not plan.strip_rows and not plan.tile:
         return estimated, fitting
     raise _refusal(shape, estimated, limit, what, fitting,
@@ -368,14 +367,15 @@ def _bound(limit, *, share: int = 1, local: bool = True):
     return bound / share, what if share == 1 else f"{what} shared by {share} workers"
 
 
-def _cheapest_tiling(shape, plan, bound, estimate):
-    """The strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` (of the
-    bucketed shape) that comes first in its order under ``bound``; None if none fits."""
+def _cheapest_tiling(shape, plan, params, bound, estimate):
+    """The strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` (of the bucketed
+    shape, paths carried as the plan and method allow) first under ``bound``; None: none fits."""
     height, width, ndisp = shape
+    carried = plan.carry_paths and carries_paths(params)
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
     for tiling in tilings_by_work(height, width, lead=ndisp, overlap=plan.strip_overlap,
-                                  strip_heights=STRIP_HEIGHTS):
+                                  strip_heights=STRIP_HEIGHTS, carried=carried):
         trial = plan._replace(strip_rows=0 if tiling.cols else tiling.rows,
                               tile=tiling.rows if tiling.cols else 0, strip_overlap=tiling.overlap)
         if estimate(trial) <= bound:

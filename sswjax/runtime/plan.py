@@ -22,6 +22,7 @@ import numpy as np
 from sswjax.config import Params
 from sswjax.graph import DEFAULT_CHUNK
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
+from sswjax.runtime.carried import carried_strips, in_carried_strips
 from sswjax.runtime.tiles import Tiling, Window, in_tiles
 
 __all__ = ["ExecutionPlan", "bind_graph", "check_plan", "execute", "graph_call", "plan_tiling",
@@ -61,6 +62,12 @@ class ExecutionPlan(NamedTuple):
         Where the windows run: None (default) in this process, one after the other; an engine
         such as :class:`sswjax.cluster.DaskEngine` runs them elsewhere (its ``execute`` has
         the signature of :func:`execute`). Never changes the maps.
+    carry_paths : bool
+        True (default): row strips of a method with semi-global paths over the full-resolution
+        volume carry the paths along the rows from strip to strip (two sweeps,
+        :mod:`sswjax.runtime.carried`), so that the strips give the whole image's maps;
+        False: each strip's paths start afresh at its edges (one sweep, and its strips
+        independent tasks under an engine). Tiles that cut the columns never carry them.
     """
 
     strip_rows: int = 0
@@ -69,6 +76,7 @@ class ExecutionPlan(NamedTuple):
     disparity_chunk: int = DEFAULT_CHUNK
     tile: int = 0
     engine: object = None
+    carry_paths: bool = True
 
 
 def check_plan(plan) -> ExecutionPlan:
@@ -84,6 +92,8 @@ def check_plan(plan) -> ExecutionPlan:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
                 or not 0 <= value <= high:
             raise ValueError(f"plan.{name} must be an integer in [0, {high}], got {value!r}")
+    if not isinstance(plan.carry_paths, (bool, np.bool_)):
+        raise ValueError(f"plan.carry_paths must be True or False, got {plan.carry_paths!r}")
     if plan.engine is not None and not callable(getattr(plan.engine, "execute", None)):
         raise TypeError(f"plan.engine must be None or have an execute method (a "
                         f"sswjax.cluster.DaskEngine), got {type(plan.engine).__name__}")
@@ -214,8 +224,13 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     height, width = left.shape[:2]
     left, right, call = graph_call(left, right, ndisp, plan)
     tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
-    maps = in_tiles(lambda window: bind_graph(graph, params, call, window=window), left, right,
-                    tiling, bound=True)
+    if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
+        maps = in_carried_strips(lambda function, window: bind_graph(function, params, call,
+                                                                     window=window),
+                                 graph, left, right, tiling, params=params, ndisp=call["ndisp"])
+    else:
+        maps = in_tiles(lambda window: bind_graph(graph, params, call, window=window), left,
+                        right, tiling, bound=True)
     if isinstance(maps, tuple):
         return type(maps)(*(m[:height, :width] for m in maps))
     return maps[:height, :width]

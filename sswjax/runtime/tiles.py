@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles",
-           "tile_count", "tile_windows", "tilings_by_work", "window_shape"]
+           "tile_count", "tile_windows", "tilings_by_work", "to_numpy", "window_shape"]
 
 TILE_SIZES = (2048, 1536, 1024, 768, 512, 384, 256, 192, 128)
 """Square tile sizes (core rows and columns) the memory guard tries besides full-width strips."""
@@ -119,8 +119,8 @@ def tile_count(height: int, width: int, tiling: Tiling) -> int:
 
 
 def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
-                    strip_heights: Iterable[int], tile_sizes: Iterable[int] = TILE_SIZES
-                    ) -> list[Tiling]:
+                    strip_heights: Iterable[int], tile_sizes: Iterable[int] = TILE_SIZES,
+                    carried: bool = False) -> list[Tiling]:
     """The full-width strips of ``strip_heights`` lower than the image and the square tiles of
     ``tile_sizes`` that cut its columns, in the memory guard's order of preference. The collar
     is capped at the core's size; those with the whole ``overlap`` come first (a capped collar
@@ -130,6 +130,11 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
     each group the fewest computed pixels first (windows times their area: the collars and the
     ``lead`` columns are computed again); on a tie strips first, then the larger.
 
+    ``carried``: the method's paths along the rows run on from strip to strip
+    (:mod:`sswjax.runtime.carried`), so a strip's height no longer matters and strips, whose
+    paths are then the whole image's, come before every tiling that cuts the columns (whose
+    paths along the rows still restart); then the whole collar, then the fewest pixels.
+
     Examples
     --------
     >>> [t[:2] for t in tilings_by_work(2000, 6000, lead=256, overlap=32, strip_heights=(512,),
@@ -138,6 +143,9 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
     >>> [t[:2] for t in tilings_by_work(3000, 4000, lead=256, overlap=96,
     ...                                 strip_heights=(64, 32), tile_sizes=(512, 128))]
     [(512, 512), (128, 128), (64, 0), (32, 0)]
+    >>> [t[:2] for t in tilings_by_work(3000, 4000, lead=256, overlap=96, carried=True,
+    ...                                 strip_heights=(64, 32), tile_sizes=(512, 128))]
+    [(64, 0), (32, 0), (512, 512), (128, 128)]
     """
     trials = [Tiling(rows, 0, min(overlap, rows), lead) for rows in strip_heights if rows < height]
     trials += [tiling for tiling in (Tiling(size, size, min(overlap, size), lead)
@@ -146,8 +154,11 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
 
     def work(tiling):
         rows, cols = window_shape(height, width, tiling)
-        return (tiling.overlap < overlap, tiling.rows < PREFERRED_CORE,
-                tile_count(height, width, tiling) * rows * cols, tiling.cols > 0, -tiling.rows)
+        pixels = tile_count(height, width, tiling) * rows * cols
+        if carried:
+            return tiling.cols > 0, tiling.overlap < overlap, pixels, -tiling.rows
+        return (tiling.overlap < overlap, tiling.rows < PREFERRED_CORE, pixels, tiling.cols > 0,
+                -tiling.rows)
 
     return sorted(trials, key=work)
 
@@ -199,7 +210,7 @@ def assemble(height: int, width: int, pieces: Iterable[tuple[Window, object]]):
     return kind(*out) if kind else out[0]
 
 
-def _to_numpy(result):
+def to_numpy(result):
     """A map, or a (Named)tuple of maps, as NumPy arrays of the same structure."""
     if isinstance(result, tuple):
         return type(result)(*(np.asarray(part) for part in result))
@@ -238,13 +249,13 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling,
     windows = tile_windows(height, width, tiling)
     if len(windows) == 1:
         whole = run(None) if bound else run
-        return _to_numpy(whole(jnp.asarray(left), jnp.asarray(right)))
+        return to_numpy(whole(jnp.asarray(left), jnp.asarray(right)))
 
     def pieces():
         for w in windows:
             rows, cols = slice(w.top, w.top + w.height), slice(w.left, w.left + w.width)
             window_run = run(w) if bound else run
-            yield w, core_of(w, _to_numpy(window_run(jnp.asarray(left[rows, cols]),
+            yield w, core_of(w, to_numpy(window_run(jnp.asarray(left[rows, cols]),
                                                      jnp.asarray(right[rows, cols]))))
 
     return assemble(height, width, pieces())
