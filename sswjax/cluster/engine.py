@@ -7,7 +7,9 @@ only its windows elsewhere: each window of the tiling (:mod:`sswjax.runtime.tile
 that gets its two crops and gives back its core, stitched here as they arrive. The tasks
 carry their crops (no scattered data), so the scheduler can run a task again on another
 worker when its worker dies; a bounded number of them is in flight at a time, so the
-scheduler holds a few windows, not the image. Before any task, every window is estimated
+scheduler holds a few windows, not the image. Row strips whose semi-global paths are
+carried from strip to strip (:mod:`sswjax.runtime.carried`) wait for each other: their chain
+is one task. Before any task, every window is estimated
 against the workers' memory limit (:func:`sswjax.runtime.memory.worker_peak_bytes`): a plan
 without tiles gets the tiles that fit a worker, and a tiling that does not fit is refused.
 
@@ -25,8 +27,9 @@ from tqdm import tqdm
 
 from sswjax._files import first_line
 from sswjax.api.match import match, match_with_confidence
-from sswjax.cluster.tasks import graph_name, match_window
+from sswjax.cluster.tasks import graph_name, match_carried, match_window
 from sswjax.cluster.workers import require_distributed, worker_memory
+from sswjax.runtime.carried import carried_strips
 from sswjax.runtime.memory import plan_for_memory
 from sswjax.runtime.plan import ExecutionPlan, graph_call, plan_tiling, pyramid_align
 from sswjax.runtime.tiles import assemble, tile_windows
@@ -92,9 +95,16 @@ class DaskEngine:
         with self._session() as client:
             plan = self._fitted(client, left.shape, call["ndisp"], params, plan)
             tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
-            windows = tile_windows(left.shape[0], left.shape[1], tiling)
-            pieces = self._pieces(client, name, keywords, left, right, windows, params, call)
-            maps = assemble(left.shape[0], left.shape[1], pieces)
+            if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
+                # Each strip waits for its neighbours' paths: the chain is one task.
+                maps = client.submit(match_carried, name, keywords, left, right, tiling,
+                                     params=params, call=call, cache=self.cache,
+                                     key=f"sswjax-strips-{uuid.uuid4().hex[:12]}",
+                                     retries=self.retries, pure=False).result()
+            else:
+                windows = tile_windows(left.shape[0], left.shape[1], tiling)
+                pieces = self._pieces(client, name, keywords, left, right, windows, params, call)
+                maps = assemble(left.shape[0], left.shape[1], pieces)
         if isinstance(maps, tuple):
             return type(maps)(*(m[:height, :width] for m in maps))
         return maps[:height, :width]

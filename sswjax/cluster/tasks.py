@@ -7,7 +7,8 @@ A pair's task reads its images from their paths and writes its map atomically
 returns a :class:`PairOutcome`, and a failure on bad input (an unreadable image, a map that
 cannot be written: ``ValueError``, ``OSError``) is an outcome too, never an exception, so Dask
 does not run it again. A window's task matches two crops with a graph of :mod:`sswjax.graph`
-named by :func:`graph_name` and returns the core of its maps.
+named by :func:`graph_name` and returns the core of its maps; a chain of row strips whose
+paths are carried runs as one task (:func:`match_carried`).
 """
 
 from __future__ import annotations
@@ -28,10 +29,11 @@ from sswjax.graph import ssw_cues, ssw_disparity, ssw_outputs
 from sswjax.runtime.executables import bounded
 from sswjax.runtime.memory import MemoryEstimateError
 from sswjax.runtime.plan import ExecutionPlan, bind_graph
-from sswjax.runtime.tiles import Window, core_of
+from sswjax.runtime.carried import in_carried_strips
+from sswjax.runtime.tiles import Tiling, Window, core_of
 
-__all__ = ["BAD_INPUT", "GRAPHS", "PairJob", "PairOutcome", "graph_name", "match_pair",
-           "match_window"]
+__all__ = ["BAD_INPUT", "GRAPHS", "PairJob", "PairOutcome", "graph_name", "match_carried",
+           "match_pair", "match_window"]
 
 BAD_INPUT = (ValueError, OSError, MemoryEstimateError)
 """What a pair's task reports as its failure instead of raising (the command line's user
@@ -126,3 +128,19 @@ def match_window(name: str, keywords: dict, left: np.ndarray, right: np.ndarray,
         graph = functools.partial(graph, **keywords)
     maps = bind_graph(graph, params, call, window=window)(jnp.asarray(left), jnp.asarray(right))
     return window, core_of(window, maps)
+
+
+def match_carried(name: str, keywords: dict, left: np.ndarray, right: np.ndarray,
+                  tiling: Tiling, *, params: Params, call: dict, cache: str | None = None):
+    """The maps of row strips with their paths carried from strip to strip
+    (:func:`~sswjax.runtime.carried.in_carried_strips`): the graph ``name`` (with
+    ``keywords``) on the whole pair float32 ``(H, W, C)``, a strip at a time, with the keyword
+    arguments ``call`` of :func:`~sswjax.runtime.plan.graph_call`. Returns the NumPy
+    ``(H, W)`` maps, as :func:`~sswjax.runtime.tiles.assemble` does."""
+    prepare_worker(cache)
+    graph = _graph(name)
+    if keywords:
+        graph = functools.partial(graph, **keywords)
+    return in_carried_strips(lambda function, window: bind_graph(function, params, call,
+                                                                 window=window),
+                             graph, left, right, tiling, params=params, ndisp=call["ndisp"])
