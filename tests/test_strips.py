@@ -1,11 +1,13 @@
 """Matching in horizontal strips (``ExecutionPlan.strip_rows``): memory follows the strip, results
 the image."""
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
 import sswjax
 from sswjax import ExecutionPlan
+from sswjax.data.io import read_image, read_pfm
 
 
 @pytest.fixture(scope="module")
@@ -71,3 +73,19 @@ def test_carried_paths_give_the_whole_images_map_in_strips(striped_pair):
     assert np.mean(restarted != whole) > 0.1
     with pytest.raises(ValueError, match="plan.carry_paths must be True or False"):
         sswjax.match(*striped_pair, 16, params=params, plan=plan._replace(carry_paths=1))
+
+
+def test_the_command_line_carries_the_paths_unless_told_not_to(striped_pair, tmp_path, run_cli):
+    # The command line runs the stored graphs (persistent cache on): the seeds go in and out
+    # of their serialized form too.
+    for name, image in zip(("l.png", "r.png"), striped_pair):
+        iio.imwrite(tmp_path / name, np.round(image * 255).astype(np.uint8))
+    left, right = read_image(tmp_path / "l.png"), read_image(tmp_path / "r.png")
+    for carry, flag in ((True, []), (False, ["--no-carry-paths"])):
+        code, _, stderr = run_cli(["match", tmp_path / "l.png", tmp_path / "r.png", "--ndisp", 16,
+                                   "--strip-rows", 16, "--strip-overlap", 40, *flag,
+                                   "-o", tmp_path / f"{carry}.pfm"])
+        assert code == 0, stderr
+        plan = ExecutionPlan(strip_rows=16, strip_overlap=40, carry_paths=carry)
+        np.testing.assert_array_equal(read_pfm(tmp_path / f"{carry}.pfm"),
+                                      sswjax.match(left, right, 16, plan=plan))

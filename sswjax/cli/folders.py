@@ -159,6 +159,8 @@ def match_folders(args: argparse.Namespace) -> int:
                 "buckets": None if buckets is None else list(buckets)}
     if plan.tile:
         settings["tile"] = plan.tile
+    if not plan.carry_paths:
+        settings["carry_paths"] = False
     if getattr(args, "rectify", None) is not None:
         settings["rectify"] = [str(path) for path in args.rectify]
     narrowest = min(pairs, key=lambda p: p.size[1])

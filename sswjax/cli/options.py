@@ -227,7 +227,7 @@ def _positive(text: str) -> int:
 
 def add_plan_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--strip-rows N``, ``--strip-overlap N``, ``--disparity-chunk K``, ``--tile SIZE``,
-    ``--workers N`` and ``--scheduler ADDR``."""
+    ``--no-carry-paths``, ``--workers N`` and ``--scheduler ADDR``."""
     defaults = ExecutionPlan()
     parser.add_argument("--strip-rows", type=_count, metavar="N",
                         help="match in horizontal strips of N rows: memory follows the strip "
@@ -245,6 +245,10 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                              "follows the tile; with --workers or --scheduler the tiles of one "
                              "pair are the cluster's tasks (default: tiles or strips only if "
                              "the pair does not fit)")
+    parser.add_argument("--no-carry-paths", action="store_true",
+                        help="in strips, start each strip's semi-global paths afresh at its "
+                             "edges (one sweep) instead of handing them on from strip to "
+                             "strip (two sweeps, the whole image's map)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_positive, metavar="N",
                        help="run on a Dask cluster of N single-threaded worker processes "
@@ -285,4 +289,6 @@ def plan_from_args(args: argparse.Namespace, execution: Mapping, *,
             raise ValueError(f"--tile {tile} and --strip-rows {args.strip_rows} both cut the "
                              "pair: give one")
         values.update(tile=tile, strip_rows=0)  # the command line's tiles replace a file's strips
+    if getattr(args, "no_carry_paths", False):
+        values["carry_paths"] = False
     return check_plan(ExecutionPlan(**values, buckets=buckets))
