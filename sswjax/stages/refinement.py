@@ -151,9 +151,8 @@ def fill_background(disparity: jax.Array, valid: jax.Array, *, left_band: bool =
         (the band of the left border that has no match) take the straight line
         ``d = a + b (x - x0)`` fitted by least squares to the valid pixels of columns
         ``x0 .. x0 + k - 1``, when at least a third of them are valid (else the rule above),
-        clipped to ``[0,`` the row's largest valid disparity ``]``: a slanted surface continues
-        into the band, where a constant leaves it over a band as wide as its disparity. 0: the
-        constant.
+        clipped below at 0: a slanted surface continues into the band, where a constant leaves
+        it over a band as wide as its disparity. 0: the constant.
 
     Returns
     -------
@@ -200,11 +199,10 @@ def _fit_band(disparity: jax.Array, valid: jax.Array, fill: jax.Array, width: in
     det = n * sxx - sx * sx
     slope = jnp.where(det > 0, (n * sxd - sx * sd) / jnp.where(det > 0, det, 1.0), 0.0)
     intercept = (sd - slope * sx) / jnp.maximum(n, 1.0)
-    # Clipped by the row's own largest valid disparity, not the image's: the fill reads nothing
-    # beyond its row, so a window of row strips fills as the whole image does (`accurate` has
-    # the same bad 2.0, 1.0 and 0.5 with either on the three shared sets, docs/cluster.md).
-    top = jnp.max(jnp.where(valid, disparity, 0.0), axis=1, keepdims=True)
-    line = jnp.clip(intercept + slope * offset, 0.0, top)
+    # Clipped below only: an upper bound read from the image (its largest disparity, or its
+    # row's) would differ in a window of strips or tiles and change the fill there; the graph
+    # clips the map to the search range after the fill (docs/cluster.md).
+    line = jnp.maximum(intercept + slope * offset, 0.0)
     return jnp.where((offset < 0) & (3 * n >= width), line, fill)
 
 

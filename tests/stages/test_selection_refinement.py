@@ -315,13 +315,11 @@ def test_left_band_fill_keeps_the_surface_that_has_no_match():
 
 def band_fit_reference(d, v, width):
     """Loops: the left-band fill, then each row's pixels left of its first valid one on the
-    least-squares line through the valid pixels of the next ``width`` columns, clipped to
-    [0, the row's largest valid disparity]."""
+    least-squares line through the valid pixels of the next ``width`` columns, clipped at 0."""
     ours = fill_background_reference(d, v, left_band=True)
     for y in range(d.shape[0]):
         if not v[y].any():
             continue
-        top = d[y, v[y]].max()
         x0 = int(np.argmax(v[y]))
         xs = [x for x in range(x0, min(x0 + width, d.shape[1])) if v[y, x]]
         if 3 * len(xs) < width:
@@ -331,7 +329,7 @@ def band_fit_reference(d, v, width):
         else:
             slope, intercept = 0.0, float(d[y, xs[0]])
         for x in range(x0):
-            ours[y, x] = np.clip(intercept + slope * (x - x0), 0, top)
+            ours[y, x] = max(intercept + slope * (x - x0), 0.0)
     return ours
 
 
@@ -361,15 +359,19 @@ def test_fill_background_band_fit_matches_reference_on_random_maps():
         np.testing.assert_allclose(ours, band_fit_reference(d, v, width), atol=1e-4)
 
 
-def test_fill_background_band_fit_is_clipped_by_its_own_row():
-    # Row 0's steep line is clipped at its own largest disparity, not at row 1's larger one:
-    # the fill reads nothing beyond its row, so windows of row strips fill as the whole image.
-    d = np.array([[0, 0, 0, 4, 3, 2, 1], [0, 0, 0, 9, 9, 9, 9]], np.float32)
+def test_fill_background_band_fit_reads_nothing_beyond_its_row():
+    # Row 0's steep line goes on above every disparity of the map, and row 1's falls to 0:
+    # no bound read from the map (which a window of strips or tiles would see otherwise).
+    d = np.array([[0, 0, 0, 4, 3, 2, 1], [0, 0, 0, 1, 2, 3, 4]], np.float32)
     v = np.array([[0, 0, 0, 1, 1, 1, 1], [0, 0, 0, 1, 1, 1, 1]], bool)
     ours = np.asarray(fill_background(jnp.asarray(d), jnp.asarray(v), left_band=True,
                                       band_fit=4))
-    assert ours[0, :3].tolist() == [4.0, 4.0, 4.0] and ours[1, :3].tolist() == [9.0] * 3
+    np.testing.assert_allclose(ours[0, :3], [7.0, 6.0, 5.0], atol=1e-5)
+    np.testing.assert_allclose(ours[1, :3], [0.0, 0.0, 0.0], atol=1e-5)
     np.testing.assert_allclose(ours, band_fit_reference(d, v, 4), atol=1e-5)
+    assert np.array_equal(ours[:1], np.asarray(fill_background(jnp.asarray(d[:1]),
+                                                               jnp.asarray(v[:1]),
+                                                               left_band=True, band_fit=4)))
 
 
 def test_fill_background_band_fit_needs_the_left_band():
