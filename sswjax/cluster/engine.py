@@ -96,11 +96,7 @@ class DaskEngine:
             plan = self._fitted(client, left.shape, call["ndisp"], params, plan)
             tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
             if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
-                # Each strip waits for its neighbours' paths: the chain is one task.
-                maps = client.submit(match_carried, name, keywords, left, right, tiling,
-                                     params=params, call=call, cache=self.cache,
-                                     key=f"sswjax-strips-{uuid.uuid4().hex[:12]}",
-                                     retries=self.retries, pure=False).result()
+                maps = self._chain(client, name, keywords, left, right, tiling, params, call)
             else:
                 windows = tile_windows(left.shape[0], left.shape[1], tiling)
                 pieces = self._pieces(client, name, keywords, left, right, windows, params, call)
@@ -120,6 +116,19 @@ class DaskEngine:
         return plan_for_memory(shape[0], shape[1], ndisp, params=params, channels=shape[2],
                                plan=plan._replace(buckets=None), limit=limit, local=False,
                                worker_tiles=True)
+
+    def _chain(self, client, name, keywords, left, right, tiling, params, call):
+        """The maps of carried strips: each strip waits for its neighbours' paths, so their
+        chain is one task (run again elsewhere if its worker dies)."""
+        future = client.submit(match_carried, name, keywords, left, right, tiling, params=params,
+                               call=call, cache=self.cache, retries=self.retries, pure=False,
+                               key=f"sswjax-strips-{uuid.uuid4().hex[:12]}")
+        try:
+            return future.result()
+        except Exception as error:
+            raise TileFailed(f"the task of the strips failed: {type(error).__name__}: "
+                             f"{first_line(error)} (a worker that dies every time is out of "
+                             "memory: thinner strips)") from error
 
     def _pieces(self, client, name, keywords, left, right, windows, params, call):
         """``(window, core)`` of every window, as the tasks complete."""

@@ -26,10 +26,10 @@ from sswjax.cluster.workers import prepare_worker
 from sswjax.config import Params
 from sswjax.data.io import read_image, write_pfm
 from sswjax.graph import ssw_cues, ssw_disparity, ssw_outputs
+from sswjax.runtime.carried import in_carried_strips
 from sswjax.runtime.executables import bounded
 from sswjax.runtime.memory import MemoryEstimateError
 from sswjax.runtime.plan import ExecutionPlan, bind_graph
-from sswjax.runtime.carried import in_carried_strips
 from sswjax.runtime.tiles import Tiling, Window, core_of
 
 __all__ = ["BAD_INPUT", "GRAPHS", "PairJob", "PairOutcome", "graph_name", "match_carried",

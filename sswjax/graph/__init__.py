@@ -15,5 +15,5 @@ from sswjax.graph.match import (DEFAULT_CHUNK, SSWOutputs, aggregated_cost, carr
                                 ssw_carried, ssw_cues, ssw_disparity, ssw_outputs)
 from sswjax.graph.scopes import Stage
 
-__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "Stage", "aggregated_cost", "carries_paths", "ssw_carried",
-           "ssw_cues", "ssw_disparity", "ssw_outputs"]
+__all__ = ["DEFAULT_CHUNK", "SSWOutputs", "Stage", "aggregated_cost", "carries_paths",
+           "ssw_carried", "ssw_cues", "ssw_disparity", "ssw_outputs"]

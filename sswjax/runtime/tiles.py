@@ -256,6 +256,6 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling,
             rows, cols = slice(w.top, w.top + w.height), slice(w.left, w.left + w.width)
             window_run = run(w) if bound else run
             yield w, core_of(w, to_numpy(window_run(jnp.asarray(left[rows, cols]),
-                                                     jnp.asarray(right[rows, cols]))))
+                                                    jnp.asarray(right[rows, cols]))))
 
     return assemble(height, width, pieces())
