@@ -24,6 +24,7 @@ from sswjax.runtime.memory import (
 )
 from sswjax.runtime.plan import bind_graph, check_plan, graph_call
 from sswjax.runtime.tiles import (
+    CARRIED_COLLAR,
     PREFERRED_CORE,
     TILE_SIZES,
     Tiling,
@@ -176,6 +177,17 @@ def test_memory_guard_prefers_tiles_with_the_whole_collar_to_thin_strips_with_le
     assert fitted.strip_overlap == ExecutionPlan().strip_overlap == 96
     assert fitted.tile and not fitted.strip_rows
     assert estimate_peak_bytes(*shape, params=accurate, plan=fitted) <= budget
+
+
+def test_carried_strips_thinner_than_the_least_collar_keep_it():
+    # docs/cluster.md: KITTI 000122 (216 disparities) under 1 GB, strips of 32 rows with their
+    # collar capped at 32 changed 1.44 % of the map, strips of 16 with a collar of 48 0.002 %
+    accurate, shape = sswjax.preset("accurate"), (375, 1242, 216)
+    fitted = plan_for_memory(*shape, params=accurate, limit=1e9, local=False)
+    assert (fitted.strip_rows, fitted.strip_overlap) == (16, CARRIED_COLLAR)
+    capped = ExecutionPlan(strip_rows=32, strip_overlap=32)
+    assert estimate_peak_bytes(*shape, params=accurate, plan=capped) <= 1e9
+    assert _computed_pixels(*shape, capped) < _computed_pixels(*shape, fitted)
 
 
 @pytest.mark.parametrize("shape, limit", [((3000, 4000, 256), 3e9), ((376, 1241, 128), 1.0e9)])

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles",
+__all__ = ["CARRIED_COLLAR", "PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles",
            "tile_count", "tile_windows", "tilings_by_work", "to_numpy", "window_shape"]
 
 TILE_SIZES = (2048, 1536, 1024, 768, 512, 384, 256, 192, 128)
@@ -43,6 +43,14 @@ textureless region often: on a 4000 x 3000 pair with 256 disparities under a 3 G
 fewest-pixels choice (strips of 64 rows) changed 3.36 % of the pixels against tiles of 1024,
 tiles of 512 0.03 % for about 14 % more work; on KITTI 2012, strips of 48 rows changed 14.5 %
 (``docs/cluster.md``, "The seams, measured")."""
+
+
+CARRIED_COLLAR = 48
+"""The least collar the memory guard gives strips whose semi-global paths are carried
+(:mod:`sswjax.runtime.carried`), even when it is wider than their core: the seed enters half
+of it in, and the fill, medians and smoothing of ``accurate`` reach about 27 rows (KITTI 2012
+000122 under 1 GB: strips of 32 rows with a collar of 32 changed 1.44 % of the pixels, strips
+of 16 with 48 0.002 %, ``docs/cluster.md``)."""
 
 
 class Tiling(NamedTuple):
@@ -133,7 +141,9 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
     ``carried``: the method's paths along the rows run on from strip to strip
     (:mod:`sswjax.runtime.carried`), so a strip's height no longer matters and strips, whose
     paths are then the whole image's, come before every tiling that cuts the columns (whose
-    paths along the rows still restart); then the whole collar, then the fewest pixels.
+    paths along the rows still restart); then the whole collar, then a collar of at least
+    :data:`CARRIED_COLLAR` (strips thinner than it are tried with it too), then the fewest
+    pixels.
 
     Examples
     --------
@@ -143,11 +153,15 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
     >>> [t[:2] for t in tilings_by_work(3000, 4000, lead=256, overlap=96,
     ...                                 strip_heights=(64, 32), tile_sizes=(512, 128))]
     [(512, 512), (128, 128), (64, 0), (32, 0)]
-    >>> [t[:2] for t in tilings_by_work(3000, 4000, lead=256, overlap=96, carried=True,
+    >>> [t[:3] for t in tilings_by_work(3000, 4000, lead=256, overlap=96, carried=True,
     ...                                 strip_heights=(64, 32), tile_sizes=(512, 128))]
-    [(64, 0), (32, 0), (512, 512), (128, 128)]
+    [(64, 0, 64), (32, 0, 48), (32, 0, 32), (512, 512, 96), (128, 128, 96)]
     """
     trials = [Tiling(rows, 0, min(overlap, rows), lead) for rows in strip_heights if rows < height]
+    enough = min(overlap, CARRIED_COLLAR)
+    if carried:
+        trials += [Tiling(rows, 0, enough, lead) for rows in strip_heights
+                   if rows < min(height, enough)]
     trials += [tiling for tiling in (Tiling(size, size, min(overlap, size), lead)
                                      for size in tile_sizes)
                if window_shape(height, width, tiling)[1] < width]
@@ -156,7 +170,8 @@ def tilings_by_work(height: int, width: int, *, lead: int, overlap: int,
         rows, cols = window_shape(height, width, tiling)
         pixels = tile_count(height, width, tiling) * rows * cols
         if carried:
-            return tiling.cols > 0, tiling.overlap < overlap, pixels, -tiling.rows
+            return (tiling.cols > 0, tiling.overlap < overlap, tiling.overlap < enough, pixels,
+                    -tiling.rows)
         return (tiling.overlap < overlap, tiling.rows < PREFERRED_CORE, pixels, tiling.cols > 0,
                 -tiling.rows)
 
