@@ -189,11 +189,8 @@ def optimised_volume(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
                          high if store is None else store(high))
     with scope(Stage.OPTIMIZATION):
         labels = scene.labels if scene.num_segments else None
-        if seeds is None:
-            optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound)
-        else:
-            optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound,
-                                           seeds=seeds)
+        optimised = optimizer.optimise(cost, scene.left, labels=labels, cost_bound=bound,
+                                       seeds=seeds)
     return cost, optimised
 
 
