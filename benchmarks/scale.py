@@ -2,13 +2,15 @@
 and the cost of tiles on full-resolution input.
 
 Folders: ``sswjax match image_0 image_1 --ndisp 128 -o OUT`` (the ``accurate`` preset) in a
-fresh process each time, four ways: the in-process loop as it is, the same loop with XLA
-pinned to one thread (the environment every worker gets), ``--workers 1`` and ``--workers 2``.
-Each first runs on one pair of each shape, to fill the compilation cache of its XLA flags (the
-pinned flags compile other executables), then is timed on all the pairs: the command's
-wall time, and the loop's (the summary line's seconds: from the first pair to the last map,
-the cluster's start included). Ratios: 2 workers over 1 (goal >= 1.7 on this 2-core machine)
-and Dask's overhead, 1 worker against the pinned loop (goal <= 10 %).
+fresh process each time, four ways: the in-process loop as it is (XLA's threads on every
+core), the same loop on one core (the process's CPU affinity set before it starts, and the
+environment every worker gets: a worker as :func:`sswjax.cluster.workers.pin_workers` makes
+it), ``--workers 1`` and ``--workers 2`` (each worker on a core of its own). Each first runs
+on one pair of each shape, to fill the compilation cache of its XLA flags (the workers' flags
+compile other executables), then is timed on all the pairs: the command's wall time, and the
+loop's (the summary line's seconds: from the first pair to the last map, the cluster's start
+included). Ratios: 2 workers over 1 (goal >= 1.7 on this 2-core machine) and Dask's overhead,
+1 worker against the loop on one core (goal <= 10 %).
 
 Tiles: a pair of MiddEval3's full resolution (Motorcycle's quarter-resolution images resized
 to 1988 x 2964, ndisp 280) and a KITTI pair (its own full resolution, 1226 x 370, ndisp 128),
@@ -40,7 +42,7 @@ from sswjax.cluster.workers import worker_environment
 NDISP = 128
 FOLDER_RUNS = {  # name -> (extra options, extra environment)
     "in-process loop": ([], {}),
-    "in-process loop, XLA on 1 thread": ([], "pinned"),
+    "in-process loop on 1 core": ([], "pinned"),
     "--workers 1": (["--workers", "1"], {}),
     "--workers 2": (["--workers", "2"], {}),
 }
@@ -80,16 +82,23 @@ print(json.dumps(seconds))
 def folder_run(folders: tuple[Path, Path], out: Path, options, environment
                ) -> tuple[float, float]:
     """``(command seconds, loop seconds)`` of one folder run of ``folders`` (left, right)."""
-    env = dict(os.environ, **(worker_environment() if environment == "pinned" else environment))
+    pinned = environment == "pinned"
+    env = dict(os.environ, **(worker_environment() if pinned else environment))
     argv = [sys.executable, "-m", "sswjax.cli", "match", str(folders[0]), str(folders[1]),
             "--ndisp", str(NDISP), "-o", str(out), *options]
     start = time.perf_counter()
-    run = subprocess.run(argv, env=env, capture_output=True, text=True, check=False)
+    run = subprocess.run(argv, env=env, capture_output=True, text=True, check=False,
+                         preexec_fn=_on_first_core if pinned else None)
     seconds = time.perf_counter() - start
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
     loop = float(re.search(r"shapes, ([0-9.]+) s", run.stdout).group(1))
     return seconds, loop
+
+
+def _on_first_core() -> None:
+    """In the child before it starts: on one core, as a worker (its threads inherit it)."""
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
 
 
 def _one_of_each_shape(data: Path, scratch: Path) -> tuple[Path, Path]:
@@ -165,10 +174,10 @@ def table(folders: list[dict], tiles: list[dict]) -> str:
                   f"{r.get('load_before', float('nan')):.2f} / {r['load_average']:.2f} |"
                   for r in sorted(folders, key=lambda r: list(FOLDER_RUNS).index(r["what"]))]
         one, two = by["--workers 1"], by["--workers 2"]
-        pinned, loop = by["in-process loop, XLA on 1 thread"], by["in-process loop"]
+        pinned, loop = by["in-process loop on 1 core"], by["in-process loop"]
         lines += ["", (f"- 2 workers over 1: **{one / two:.2f}x** the throughput (goal >= 1.7); "
                        f"over the in-process loop: {loop / two:.2f}x."),
-                  (f"- Dask's overhead, 1 worker against the loop with XLA on one thread: "
+                  (f"- Dask's overhead, 1 worker against the loop on one core: "
                    f"**{100 * (one / pinned - 1):+.1f} %** (goal <= 10 %); against the loop as "
                    f"it is: {100 * (one / loop - 1):+.1f} %."), ""]
         load = max(r.get("load_before", r["load_average"]) for r in folders)

@@ -6,8 +6,8 @@ seconds over the two's (the later of the two to finish). Three kinds of work:
 
 ``pairs``
     the 30 KITTI 2012 pairs matched with ``accurate`` (ndisp 128, as ``benchmarks/scale.py``),
-    each process with XLA pinned to one thread as a Dask worker is
-    (:func:`sswjax.cluster.workers.worker_environment`); two processes take every other pair.
+    each process on a core of its own with a worker's environment, as a Dask worker is
+    (:func:`sswjax.cluster.workers.pin_workers`); two processes take every other pair.
     Each process first matches one pair of each of its shapes (compiles, or reads the cache),
     then waits until both are ready: only the loops are timed (reading the images included).
 ``stream``
@@ -30,6 +30,7 @@ run is recorded (run it on a quiet machine).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import subprocess
@@ -117,9 +118,12 @@ def child(kind: str, part: int, parts: int, data: Path) -> None:
 def run(kind: str, parts: int, data: Path) -> dict:
     """``parts`` children of ``kind`` started together: each one's result, and the load before."""
     env = dict(os.environ, **worker_environment())
+    cores = sorted(os.sched_getaffinity(0))
     children = [subprocess.Popen([sys.executable, __file__, "--child", kind, "--part", str(i),
                                   "--parts", str(parts), "--data", str(data)],
-                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
+                                 preexec_fn=functools.partial(os.sched_setaffinity, 0,
+                                                              {cores[i % len(cores)]}))
                 for i in range(parts)]
     for process in children:
         line = process.stdout.readline().strip()
@@ -143,8 +147,8 @@ def table(rows: list[dict]) -> str:
     lines = ["# One process against two independent ones (no Dask)", "",
              "`python benchmarks/two_processes.py`: the same work by one process, then by two "
              "started together (half each), alternating; ratio: one's seconds over the two's "
-             "(the later to finish). Every process single-threaded (XLA pinned as a Dask "
-             f"worker's); {os.cpu_count()} cores. Load: the 1-minute load average before each "
+             "(the later to finish). Every process on a core of its own (its CPU affinity, "
+             f"as a Dask worker's); {os.cpu_count()} cores. Load: the 1-minute load average before each "
              "run.", "",
              "| work | round | 1 process s | 2 processes s (each) | 2 over 1 | load before (1 / 2) |",
              "|---|---:|---:|---:|---:|---|"]

@@ -1,7 +1,8 @@
 """``sswjax match ... --workers N`` or ``--scheduler ADDR``: the run on a Dask cluster.
 
-``--workers N`` starts a cluster of N spawned single-threaded worker processes on this machine
-for the run (:func:`sswjax.cluster.workers.local_cluster`) and closes it after;
+``--workers N`` starts a cluster of N spawned single-threaded worker processes on this machine,
+each pinned to a core of its own, for the run (:func:`sswjax.cluster.workers.connect`) and
+closes it after;
 ``--scheduler tcp://HOST:8786`` uses a running one (``dask scheduler`` and ``dask worker``,
 or dask-jobqueue on PBS or SLURM), whose workers read the inputs and write the outputs at the
 same paths. The pairs of two folders are its tasks (:mod:`sswjax.cli.folders`, through

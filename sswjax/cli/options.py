@@ -252,7 +252,9 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_positive, metavar="N",
                        help="run on a Dask cluster of N single-threaded worker processes "
-                            "started on this machine: the pairs of two folders, or the tiles "
+                            "started on this machine, each on a core of its own (without "
+                            "--workers one process uses every core): the pairs of two "
+                            "folders, or the tiles "
                             'of one pair, are its tasks (pip install "sswjax[distributed]")')
     where.add_argument("--scheduler", metavar="ADDR",
                        help="run on the running Dask cluster whose scheduler is ADDR (e.g. "

@@ -1,8 +1,9 @@
 """Beyond one process: Dask distributed as the engine, for many pairs and for many tiles.
 
 ==========  ===================================================================================
-``workers`` starting or joining a cluster; the workers spawned, pinned to one XLA thread each,
+``workers`` starting or joining a cluster; the workers spawned, each on a core of its own,
             the compilation cache they share (``pip install "sswjax[distributed]"``)
+``cores``   a process pinned to one core (XLA's pool follows), the workers' cores per host
 ``tasks``   what runs in a worker: one pair of a folder (read, match, write), one tile's window
 ``folders`` ``match_pairs``, ``match_folder``: pairs as tasks, their outcomes as they arrive
 ``engine``  ``DaskEngine``, ``match_tiles``: one pair's tiles as tasks, stitched

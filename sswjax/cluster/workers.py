@@ -1,17 +1,19 @@
-"""The workers of a Dask cluster as sswjax needs them: spawned processes, one XLA thread each,
-the shared compilation cache.
+"""The workers of a Dask cluster as sswjax needs them: spawned processes, each on a core of its
+own, the compilation cache they share.
 
 A worker is a process of its own (``processes=True``), started with the ``spawn`` method: a
 process forked from one that has imported JAX can deadlock in XLA's thread pools (Dask's
 default is already ``spawn``; :func:`local_cluster` sets it whatever the configuration says).
-Each worker runs one task at a time (one thread) and XLA is pinned to one thread in it
-(:func:`worker_environment`), so ``N`` workers use ``N`` cores and do not oversubscribe them.
-The pins must be in the environment before the worker imports JAX: :func:`local_cluster`
-gives them to each worker process; :func:`pin_workers` checks the workers of a running
-cluster and, where they lack them, sets them through the nannies (which restart the
-workers). Every task enables the persistent compilation cache in the folder it is given
-(:func:`prepare_worker`), once per process: a shape compiled by one worker is read from the
-shared folder by the others.
+Each worker runs one task at a time (one thread), and the worker process is pinned to one core
+(its CPU affinity, :mod:`sswjax.cluster.cores`): XLA CPU sizes its pool of threads by the cores
+a process may use, whatever its flags say, so an unpinned worker spread each graph over every
+core of the machine (1.6 of this machine's 2) and ``N`` workers contended for them. The workers
+of one host take its cores in turn; a setup callback pins each worker when it is registered
+and again when its nanny restarts it (:func:`pin_workers`, which :func:`connect` calls for the
+clusters it starts or joins). The environment of :func:`worker_environment` keeps
+Eigen and the BLAS libraries on one thread too. Every task enables the persistent compilation
+cache in the folder it is given (:func:`prepare_worker`), once per process: a shape compiled by
+one worker is read from the shared folder by the others.
 
 ``distributed`` is an optional dependency (``pip install "sswjax[distributed]"``): it is
 imported by the functions that need it, and :func:`require_distributed` says what to install.
@@ -20,9 +22,11 @@ imported by the functions that need it, and :func:`require_distributed` says wha
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 from collections.abc import Iterator, Mapping
 
+from sswjax.cluster.cores import core_slots, pin_worker
 from sswjax.runtime.compilation import enable_compilation_cache
 
 __all__ = ["INSTALL", "PINNED_FLAGS", "connect", "dashboard", "local_cluster", "pin_workers",
@@ -31,8 +35,9 @@ __all__ = ["INSTALL", "PINNED_FLAGS", "connect", "dashboard", "local_cluster", "
 INSTALL = 'pip install "sswjax[distributed]"'
 """What to install for the cluster (Dask distributed)."""
 
-PINNED_FLAGS = ("--xla_cpu_multi_thread_eigen=false", "intra_op_parallelism_threads=1")
-"""XLA flags that keep a worker's computation on one thread."""
+PINNED_FLAGS = ("--xla_cpu_multi_thread_eigen=false",)
+"""XLA flags of a worker: Eigen's operations on one thread. (XLA's own pool of threads follows
+the process's CPU affinity: :func:`pin_to_core`.)"""
 
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -50,14 +55,13 @@ def require_distributed():
 
 
 def worker_environment(*, environ: Mapping[str, str] | None = None) -> dict[str, str]:
-    """The environment variables that pin a worker to one thread: ``XLA_FLAGS`` with
-    :data:`PINNED_FLAGS` added to those of ``environ`` (default ``os.environ``), and one
-    thread for OpenMP, MKL and OpenBLAS.
+    """The environment variables of a worker: ``XLA_FLAGS`` with :data:`PINNED_FLAGS` added to
+    those of ``environ`` (default ``os.environ``), and one thread for OpenMP, MKL and OpenBLAS.
 
     Examples
     --------
     >>> worker_environment(environ={"XLA_FLAGS": "--xla_dump_to=/tmp/x"})["XLA_FLAGS"]
-    '--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1'
+    '--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=false'
     """
     environ = os.environ if environ is None else environ
     flags = environ.get("XLA_FLAGS", "").split()
@@ -69,7 +73,8 @@ def worker_environment(*, environ: Mapping[str, str] | None = None) -> dict[str,
 def local_cluster(n_workers: int, *, memory_limit="auto", dashboard_address: str | None = ":0",
                   **options):
     """A ``distributed.LocalCluster`` of ``n_workers`` spawned single-threaded processes on this
-    machine, each pinned to one XLA thread (:func:`worker_environment`).
+    machine with the environment of :func:`worker_environment` (:func:`pin_workers` then puts
+    each on a core of its own).
 
     Parameters
     ----------
@@ -96,18 +101,25 @@ def _worker_flags() -> str:
 
 
 def pin_workers(client) -> list[str]:
-    """Make sure every worker of ``client`` runs XLA on one thread; returns the addresses of
-    the workers that had to be restarted (through their nannies, with
-    :func:`worker_environment`)."""
+    """Make sure every worker of ``client`` has the environment of :func:`worker_environment`
+    and a core of its own; returns the addresses of the workers that had to be restarted for
+    the environment (through their nannies).
+
+    The cores: a setup callback (:func:`~sswjax.cluster.cores.pin_worker`) pins each worker
+    now, and whenever it starts again, to the core of its slot among its host's workers
+    (:func:`~sswjax.cluster.cores.core_slots`); a worker that joins later is left as it starts.
+    """
     require_distributed()
+    from distributed.diagnostics.plugin import Environ
+
     flags = client.run(_worker_flags)
     unpinned = [address for address, value in flags.items()
                 if not all(flag in value.split() for flag in PINNED_FLAGS)]
     if unpinned:
-        from distributed.diagnostics.plugin import Environ
-
         client.register_plugin(Environ(worker_environment()), name="sswjax-pinned-threads")
         client.wait_for_workers(len(flags))
+    slots = core_slots(client.scheduler_info(n_workers=-1)["workers"])
+    client.register_worker_callbacks(setup=functools.partial(pin_worker, slots))
     return unpinned
 
 
@@ -128,9 +140,9 @@ def dashboard(client) -> str | None:
 @contextlib.contextmanager
 def connect(*, workers: int | None = None, scheduler: str | None = None,
             timeout: float = 30) -> Iterator[object]:
-    """A ``distributed.Client`` of a running cluster at ``scheduler`` (its workers pinned,
-    :func:`pin_workers`), or of a :func:`local_cluster` of ``workers`` processes started for
-    the block and closed after it.
+    """A ``distributed.Client`` of a running cluster at ``scheduler``, or of a
+    :func:`local_cluster` of ``workers`` processes started for the block and closed after it;
+    either way its workers pinned, each to a core of its own (:func:`pin_workers`).
 
     Raises ``ImportError`` without Dask, ``OSError`` (one line) when the scheduler cannot be
     reached in ``timeout`` seconds.
@@ -153,6 +165,8 @@ def connect(*, workers: int | None = None, scheduler: str | None = None,
     try:
         client = distributed.Client(cluster)
         try:
+            client.wait_for_workers(workers, timeout=timeout * 4)
+            pin_workers(client)
             yield client
         finally:
             client.close()

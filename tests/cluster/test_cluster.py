@@ -24,7 +24,7 @@ distributed = pytest.importorskip("distributed")
 
 import sswjax
 from sswjax.cluster import PairJob, match_folder, match_pairs, match_tiles
-from sswjax.cluster.workers import PINNED_FLAGS, worker_environment
+from sswjax.cluster.workers import PINNED_FLAGS, pin_workers, worker_environment
 from sswjax.data.io import read_image, read_pfm
 
 HEIGHT, WIDTH, NDISP, SHIFT = 40, 64, 8, 3
@@ -119,6 +119,36 @@ def test_a_worker_killed_mid_run_loses_nothing(client, tmp_path, texture, cache)
         assert read_pfm(out / name.replace(".png", ".pfm")).tobytes() == expected.tobytes()
     assert victim not in client.nthreads()                       # it died; its tasks ran elsewhere
     client.wait_for_workers(2, timeout=120)                      # and its nanny started another
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="CPU affinity (Linux) and two cores")
+def test_each_worker_is_pinned_to_a_core_of_its_own_and_stays_so_when_restarted(client):
+    # XLA's pool of threads follows the process's cores: unpinned, each worker spread its
+    # graphs over every core of the machine (docs/cluster.md).
+    def threads_cores():        # in a worker (nested: sent by value): each thread's cores
+        return sorted({tuple(sorted(os.sched_getaffinity(int(thread))))
+                       for thread in os.listdir("/proc/self/task")})
+
+    def pins():
+        return client.run(threads_cores)
+
+    pin_workers(client)
+    before = pins()
+    assert all(len(cores) == 1 and len(cores[0]) == 1 for cores in before.values()), before
+    assert len({cores[0] for cores in before.values()}) == 2        # two workers, two cores
+    names = {info["name"]: address for address, info
+             in client.scheduler_info(n_workers=-1)["workers"].items()}
+    victim = names[min(names)]
+    core = before[victim]
+    os.kill(client.run(os.getpid)[victim], signal.SIGKILL)
+    deadline = time.monotonic() + 120
+    while (victim in client.nthreads() or len(client.nthreads()) < 2) and \
+            time.monotonic() < deadline:
+        time.sleep(0.05)
+    after = pins()                                     # its nanny started another: pinned too
+    assert victim not in after and sorted(after.values()) == sorted(before.values())
+    assert core in after.values()
 
 
 def test_a_bad_pair_is_named_and_the_others_are_written(client, tmp_path, texture, run_cli,
