@@ -25,7 +25,8 @@ from sswjax._checks import check_guide, check_map, check_rank
 from sswjax.stages.buffers import written_once
 from sswjax.stages.filters import edge_pad
 
-__all__ = ["gated_bilateral_line_mean", "gated_bilateral_mean", "gated_bilateral_smoothing"]
+__all__ = ["gated_bilateral_line_mean", "gated_bilateral_mean", "gated_bilateral_smoothing",
+           "line_colour_weights"]
 
 
 def gated_bilateral_mean(disparity: jax.Array, guide: jax.Array, *, radius: int, gate,
@@ -90,12 +91,42 @@ def gated_bilateral_line_mean(disparity: jax.Array, guide: jax.Array, *, radius:
     >>> [round(v, 2) for v in out[1].tolist()]   # the same ramp: the steps lie along the rows
     [0.0, 0.33, 0.67, 1.33, 1.67, 2.33, 2.67, 3.0]
     """
+    check_rank("disparity", disparity, 2)
+    check_rank("guide", guide, 3)
+    check_guide(guide, disparity)
+    weights = line_colour_weights(guide, radius=radius, colour_scale=colour_scale, axis=axis)
+    return _gated_line_mean(disparity, weights, gate=gate, axis=axis)
+
+
+def line_colour_weights(guide: jax.Array, *, radius: int, colour_scale, axis: int
+                        ) -> tuple[jax.Array, ...]:
+    """The colour weights of :func:`gated_bilateral_line_mean` along ``axis``, once for every
+    pass over the same guide.
+
+    The weight is symmetric, ``w(p, p + k) = w(p + k, p)``, so offset ``k`` and ``-k`` share one
+    plane: plane ``k - 1`` (k = 1 .. radius) holds ``exp(-sum_c |I_c(q + k) - I_c(q)| /
+    colour_scale)`` for every ``q`` of the guide edge-padded by ``radius``, ``q + k`` taken along
+    ``axis``; pixel ``p`` reads it at ``p`` for ``+k`` and at ``p - k`` for ``-k``.
+
+    Takes float32 ``guide`` (H, W, C) with C in {1, 3}, ``radius`` >= 1, ``colour_scale`` > 0
+    and ``axis`` (0 or 1); returns ``radius`` float32 planes, ``(H + 2 radius - k, W + 2
+    radius)`` along the columns (axis 0) or ``(H + 2 radius, W + 2 radius - k)`` along the rows.
+    """
     if axis not in (0, 1):
         raise ValueError(f"axis must be 0 or 1, got {axis}")
-    line = range(-radius, radius + 1)
-    offsets = [(k, 0) for k in line] if axis == 0 else [(0, k) for k in line]
-    return _gated_mean(disparity, guide, radius=radius, gate=gate, colour_scale=colour_scale,
-                       offsets=offsets)
+    check_rank("guide", guide, 3)
+    # Channels first, one plane each: a sum over a trailing channel axis ran 15x slower on XLA
+    # CPU (as in stages.cost).
+    padded = edge_pad(jnp.moveaxis(guide, -1, 0), radius)
+    scale = -1.0 / jnp.asarray(colour_scale, jnp.float32)
+    size = padded.shape[1 + axis]
+    planes = []
+    for k in range(1, radius + 1):
+        ahead = jax.lax.slice_in_dim(padded, k, size, axis=1 + axis)
+        here = jax.lax.slice_in_dim(padded, 0, size - k, axis=1 + axis)
+        difference = sum(jnp.abs(ahead[c] - here[c]) for c in range(padded.shape[0]))
+        planes.append(jnp.exp(difference * scale))
+    return tuple(planes)
 
 
 def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius: int, gate,
@@ -115,7 +146,9 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     ``optimization_barrier`` does not survive XLA CPU's fusion passes. A pass's result
     needs no buffer of its own: its exponentials are not fused into the next pass's readers,
     and a buffer per pass cost ``fast`` (6 passes) about 10 % of its whole call on Motorcycle
-    and Teddy (docs/speed.md).
+    and Teddy (docs/speed.md). The separable passes read the colour weights of
+    :func:`line_colour_weights`, computed once for all of them (the guide does not change from
+    pass to pass): the same result, bit for bit.
 
     Examples
     --------
@@ -128,10 +161,16 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     """
     options = dict(radius=radius, gate=gate, colour_scale=colour_scale)
     disparity = written_once(disparity)
+    if separable:
+        check_rank("disparity", disparity, 2)
+        check_rank("guide", guide, 3)
+        check_guide(guide, disparity)
+        weights = {axis: line_colour_weights(guide, radius=radius, colour_scale=colour_scale,
+                                             axis=axis) for axis in (1, 0)}
     for _ in range(iterations):
         if separable:
             for axis in (1, 0):
-                disparity = gated_bilateral_line_mean(disparity, guide, axis=axis, **options)
+                disparity = _gated_line_mean(disparity, weights[axis], gate=gate, axis=axis)
         else:
             disparity = gated_bilateral_mean(disparity, guide, **options)
     return disparity
@@ -163,3 +202,28 @@ def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax
         total += weight * near
         weights += weight
     return total / weights
+
+
+def _gated_line_mean(disparity, weights, *, gate, axis: int) -> jax.Array:
+    """:func:`gated_bilateral_line_mean` with the colour weights of
+    :func:`line_colour_weights` (its ``radius`` planes); ``disparity`` float32 (H, W) in and
+    out. The offsets are summed in the order -r .. r, as :func:`_gated_mean` sums them."""
+    check_rank("disparity", disparity, 2)
+    radius = len(weights)
+    check_map("disparity", disparity, radius)
+    height, width = disparity.shape
+    disparities = edge_pad(disparity, radius)
+
+    def window(plane, start):     # the (H, W) window of a padded plane, ``start`` along axis
+        rows = (start, radius) if axis == 0 else (radius, start)
+        return plane[rows[0]:rows[0] + height, rows[1]:rows[1] + width]
+
+    total = jnp.zeros_like(disparity)
+    norm = jnp.zeros_like(disparity)
+    for k in range(-radius, radius + 1):
+        near = window(disparities, radius + k)
+        colour = 1.0 if k == 0 else window(weights[abs(k) - 1], radius + min(k, 0))
+        weight = jnp.where(jnp.abs(near - disparity) < gate, colour, 0.0)
+        total += weight * near
+        norm += weight
+    return total / norm
