@@ -37,7 +37,7 @@ INSTALL = 'pip install "sswjax[distributed]"'
 
 PINNED_FLAGS = ("--xla_cpu_multi_thread_eigen=false",)
 """XLA flags of a worker: Eigen's operations on one thread. (XLA's own pool of threads follows
-the process's CPU affinity: :func:`pin_to_core`.)"""
+the process's CPU affinity: :func:`~sswjax.cluster.cores.pin_to_core`.)"""
 
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
