@@ -91,9 +91,7 @@ def gated_bilateral_line_mean(disparity: jax.Array, guide: jax.Array, *, radius:
     >>> [round(v, 2) for v in out[1].tolist()]   # the same ramp: the steps lie along the rows
     [0.0, 0.33, 0.67, 1.33, 1.67, 2.33, 2.67, 3.0]
     """
-    check_rank("disparity", disparity, 2)
-    check_rank("guide", guide, 3)
-    check_guide(guide, disparity)
+    _check_inputs(disparity, guide, radius)
     weights = line_colour_weights(guide, radius=radius, colour_scale=colour_scale, axis=axis)
     return _gated_line_mean(disparity, weights, gate=gate, axis=axis)
 
@@ -162,9 +160,7 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     options = dict(radius=radius, gate=gate, colour_scale=colour_scale)
     disparity = written_once(disparity)
     if separable:
-        check_rank("disparity", disparity, 2)
-        check_rank("guide", guide, 3)
-        check_guide(guide, disparity)
+        _check_inputs(disparity, guide, radius)
         weights = {axis: line_colour_weights(guide, radius=radius, colour_scale=colour_scale,
                                              axis=axis) for axis in (1, 0)}
     for _ in range(iterations):
@@ -179,10 +175,7 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
 def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax.Array:
     """The gated, colour-weighted mean over the window ``offsets`` ``(dy, dx)``, each within
     ``radius``; shapes as :func:`gated_bilateral_mean`."""
-    check_rank("disparity", disparity, 2)
-    check_map("disparity", disparity, radius)
-    check_rank("guide", guide, 3)
-    check_guide(guide, disparity)
+    _check_inputs(disparity, guide, radius)
     height, width = disparity.shape
     disparities = edge_pad(disparity, radius)
     # Channels first, one plane each: a sum over a trailing channel axis ran 15x slower on XLA
@@ -207,10 +200,9 @@ def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax
 def _gated_line_mean(disparity, weights, *, gate, axis: int) -> jax.Array:
     """:func:`gated_bilateral_line_mean` with the colour weights of
     :func:`line_colour_weights` (its ``radius`` planes); ``disparity`` float32 (H, W) in and
-    out. The offsets are summed in the order -r .. r, as :func:`_gated_mean` sums them."""
-    check_rank("disparity", disparity, 2)
+    out, checked by the caller (:func:`_check_inputs`). The offsets are summed in the order
+    -r .. r, as :func:`_gated_mean` sums them."""
     radius = len(weights)
-    check_map("disparity", disparity, radius)
     height, width = disparity.shape
     disparities = edge_pad(disparity, radius)
 
@@ -227,3 +219,12 @@ def _gated_line_mean(disparity, weights, *, gate, axis: int) -> jax.Array:
         total += weight * near
         norm += weight
     return total / norm
+
+
+def _check_inputs(disparity, guide, radius: int) -> None:
+    """The checks at every entry of the module: a (H, W) map at least ``radius`` wide (finite)
+    and a (H, W, C) guide of its size."""
+    check_rank("disparity", disparity, 2)
+    check_map("disparity", disparity, radius)
+    check_rank("guide", guide, 3)
+    check_guide(guide, disparity)
