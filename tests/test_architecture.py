@@ -115,8 +115,28 @@ def _cycle(graph: dict[str, list[str]]) -> list[str] | None:
     return None
 
 
+def _named_commands() -> list[str]:
+    """``sswjax.cli.app.COMMANDS``, read from its source: the command modules it imports by name
+    (only the chosen one is imported, to keep a command's start-up short)."""
+    for node in ast.parse(MODULES["sswjax.cli.app"].read_text()).body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and getattr(node.targets[0], "id", None) == "COMMANDS"):
+            return list(ast.literal_eval(node.value))
+    raise AssertionError("sswjax.cli.app has no COMMANDS")
+
+
+def test_each_named_command_is_a_cli_module_that_adds_its_parser():
+    for name in _named_commands():
+        module = f"sswjax.cli.{name}"
+        assert module in MODULES, f"sswjax.cli.app names the command {name}; {module} is missing"
+        functions = {node.name for node in ast.parse(MODULES[module].read_text()).body
+                     if isinstance(node, ast.FunctionDef)}
+        assert f"add_{name}_command" in functions, f"{module} has no add_{name}_command"
+
+
 def test_no_import_cycle():
     graph = {module: sorted({target for target, _, _ in _imports(module)}) for module in MODULES}
+    graph["sswjax.cli.app"] += [f"sswjax.cli.{name}" for name in _named_commands()]
     cycle = _cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
 

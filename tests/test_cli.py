@@ -14,6 +14,7 @@ import pytest
 
 import sswjax
 from sswjax.cli import guard, main
+from sswjax.cli.app import COMMANDS, build_parser, commands_needed
 from sswjax.cli import match as cli_match
 from sswjax.config.fields import option_fields
 from sswjax.config.parts import unregister
@@ -99,6 +100,23 @@ def test_console_script_usage_error_has_no_traceback():
     )
     assert result.returncode == 2
     assert "Traceback" not in result.stderr and "error" in result.stderr
+
+
+def test_a_command_line_imports_only_the_module_of_its_command():
+    """``sswjax match`` does not pay for the modules of ``search`` (optax), ``evaluate`` (its
+    figures) and ``download``; ``--help``, no command or a typo build every parser."""
+    script = ("import atexit, sys; atexit.register(lambda: print('loaded:', *(m for m in ("
+              "'optax', 'sswjax.search', 'sswjax.cli.evaluate', 'sswjax.evaluation.figures', "
+              "'sswjax.data.download', 'sswjax.cli.match') if m in sys.modules))); "
+              "from sswjax.cli import main; main(sys.argv[1:])")
+    loaded = subprocess.run([sys.executable, "-c", script, "--debug", "match", "--help"],
+                            capture_output=True, text=True)
+    assert loaded.returncode == 0 and "--ndisp" in loaded.stdout
+    assert loaded.stdout.splitlines()[-1].split() == ["loaded:", "sswjax.cli.match"]
+    assert commands_needed(["--no-cache", "search", "--data", "d"]) == ("search",)
+    for argv in ([], ["-h", "match"], ["--debug"], ["mach", "l", "r"]):
+        assert commands_needed(argv) == COMMANDS
+    assert " ".join(COMMANDS) in " ".join(build_parser().format_help().replace(",", " ").split())
 
 
 def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):

@@ -11,41 +11,58 @@ with status 130; ``sswjax evaluate -o DIR`` writes each scene as soon as it is d
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from sswjax._files import first_line
 from sswjax.cli.common import (EXIT_INTERRUPTED, EXIT_USAGE, Interrupted, Parser,
                                remembered_interrupts)
-from sswjax.cli.demo import add_demo_command
-from sswjax.cli.download import add_download_command
-from sswjax.cli.evaluate import add_evaluate_command
-from sswjax.cli.match import add_match_command
-from sswjax.cli.params import add_params_command
-from sswjax.cli.rectify import add_rectify_command
-from sswjax.cli.search import add_search_command
-from sswjax.cli.warmup import add_warmup_command
 from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
 from sswjax.runtime.memory import MemoryEstimateError
 
-__all__ = ["USER_ERRORS", "build_parser", "main"]
+__all__ = ["COMMANDS", "USER_ERRORS", "build_parser", "commands_needed", "main"]
 
 USER_ERRORS = (ValueError, OSError, MemoryEstimateError)
 """What bad input raises (``ConfigError`` and ``InputError`` are ``ValueError``\\ s): one line,
 exit status 2. Anything else is a bug and shows its traceback."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of every sub-command; each sets ``run`` (a function of the parsed args)."""
+COMMANDS = ("match", "demo", "evaluate", "download", "params", "rectify", "search", "warmup")
+"""The sub-commands, in the order ``--help`` lists them. Module ``sswjax.cli.<name>`` defines
+``add_<name>_command(subparsers)``, which adds the command's parser and sets its ``run``. A
+command line imports only the module of the command it names: ``search`` brings optax,
+``evaluate`` its figures and ``download`` its fetcher, about 0.15 s of a ``match``'s start-up
+(``docs/speed-and-memory.md``). The modules are named here rather than imported at the top so
+that this is so; ``tests/test_architecture.py`` checks each of them as if it were imported."""
+
+
+def commands_needed(argv: list[str]) -> tuple[str, ...]:
+    """The commands whose parsers a command line needs: the one it names, else all of them.
+
+    ``sswjax``'s own options are flags without values, so the first word that is not an option
+    is the command. With ``-h`` before it, no command, or an unknown one, every command's parser
+    is built, so that the help lists them all and the error names the valid choices.
+    """
+    for word in argv:
+        if word in ("-h", "--help"):
+            return COMMANDS
+        if not word.startswith("-"):
+            return (word,) if word in COMMANDS else COMMANDS
+    return COMMANDS
+
+
+def build_parser(commands: tuple[str, ...] = COMMANDS) -> argparse.ArgumentParser:
+    """The parser of the given sub-commands (all by default); each sets ``run`` (a function of
+    the parsed args)."""
     parser = Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not use the persistent compilation cache ($SSWJAX_CACHE_DIR, "
                              "default ~/.cache/sswjax/xla)")
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for add in (add_match_command, add_demo_command, add_evaluate_command,
-                add_download_command, add_params_command, add_rectify_command, add_search_command,
-                add_warmup_command):
-        add(commands)
+    subparsers = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for name in commands:
+        module = importlib.import_module(f"sswjax.cli.{name}")
+        getattr(module, f"add_{name}_command")(subparsers)
     return parser
 
 
@@ -59,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     0
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser().parse_args(argv)
+    args = build_parser(commands_needed(argv)).parse_args(argv)
     args.argv = argv
     cache = None if args.no_cache else enable_compilation_cache()
     try:
