@@ -119,6 +119,21 @@ def test_a_command_line_imports_only_the_module_of_its_command():
     assert " ".join(COMMANDS) in " ".join(build_parser().format_help().replace(",", " ").split())
 
 
+def test_the_console_script_runs_main_and_leaves_its_objects_to_the_exit(tmp_path):
+    """``sswjax`` (``console``) returns ``main``'s status, writes its output, and freezes what
+    the run left so that the exit does not collect it; ``main`` itself freezes nothing."""
+    script = ("import gc, sys; from sswjax.cli.app import console, main; "
+              "assert main(['params', '--preset', 'fast', '-o', sys.argv[1]]) == 0; "
+              "assert gc.get_freeze_count() == 0; "
+              "sys.argv = ['sswjax', 'params', '--preset', 'fast', '-o', sys.argv[2]]; "
+              "code = console(); print(code, gc.get_freeze_count() > 0)")
+    first, second = tmp_path / "main.json", tmp_path / "console.json"
+    run = subprocess.run([sys.executable, "-c", script, str(first), str(second)],
+                         capture_output=True, text=True, check=True)
+    assert run.stdout.splitlines()[-1] == "0 True"
+    assert json.loads(second.read_text()) == json.loads(first.read_text())
+
+
 def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):
     """The scikit-image Motorcycle demo: bad 2.0 over known pixels <= 13.6 % (paper, Table 1)."""
     assert main(["demo", "-o", str(tmp_path)]) == 0

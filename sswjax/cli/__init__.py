@@ -1,4 +1,4 @@
-"""The ``sswjax`` command line (the console script ``sswjax = "sswjax.cli:main"``).
+"""The ``sswjax`` command line (the console script ``sswjax = "sswjax.cli:console"``).
 
 =================  ==============================================================================
 ``app``            the parser of every sub-command, ``main(argv)`` and its exit codes
@@ -16,6 +16,6 @@
 =================  ==============================================================================
 """
 
-from sswjax.cli.app import main
+from sswjax.cli.app import console, main
 
-__all__ = ["main"]
+__all__ = ["console", "main"]

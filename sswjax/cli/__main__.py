@@ -2,6 +2,6 @@
 
 import sys
 
-from sswjax.cli.app import main
+from sswjax.cli.app import console
 
-sys.exit(main())
+sys.exit(console())
