@@ -17,7 +17,7 @@ import functools
 import time
 from typing import NamedTuple
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 
 from sswjax._files import first_line
@@ -126,7 +126,8 @@ def match_window(name: str, keywords: dict, left: np.ndarray, right: np.ndarray,
     graph = _graph(name)
     if keywords:
         graph = functools.partial(graph, **keywords)
-    maps = bind_graph(graph, params, call, window=window)(jnp.asarray(left), jnp.asarray(right))
+    run = bind_graph(graph, params, call, window=window)
+    maps = run(jax.device_put(left), jax.device_put(right))
     return window, core_of(window, maps)
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -105,7 +106,7 @@ def in_carried_strips(bind: Callable[[Callable, object], Callable], graph: Calla
 
     def pair(window):
         rows = slice(window.top, window.top + window.height)
-        return jnp.asarray(left[rows]), jnp.asarray(right[rows])
+        return jax.device_put(left[rows]), jax.device_put(right[rows])
 
     def gap(k):  # rows from window k's top to window k + 1's
         return windows[k + 1].top - windows[k].top

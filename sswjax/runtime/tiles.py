@@ -27,11 +27,12 @@ import math
 from collections.abc import Callable, Iterable
 from typing import NamedTuple
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 
-__all__ = ["CARRIED_COLLAR", "PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble", "core_of", "in_tiles",
-           "tile_count", "tile_windows", "tilings_by_work", "to_numpy", "window_shape"]
+__all__ = ["CARRIED_COLLAR", "PREFERRED_CORE", "TILE_SIZES", "Tiling", "Window", "assemble",
+           "core_of", "in_tiles", "tile_count", "tile_windows", "tilings_by_work", "to_numpy",
+           "window_shape"]
 
 TILE_SIZES = (2048, 1536, 1024, 768, 512, 384, 256, 192, 128)
 """Square tile sizes (core rows and columns) the memory guard tries besides full-width strips."""
@@ -264,13 +265,13 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling,
     windows = tile_windows(height, width, tiling)
     if len(windows) == 1:
         whole = run(None) if bound else run
-        return to_numpy(whole(jnp.asarray(left), jnp.asarray(right)))
+        return to_numpy(whole(jax.device_put(left), jax.device_put(right)))
 
     def pieces():
         for w in windows:
             rows, cols = slice(w.top, w.top + w.height), slice(w.left, w.left + w.width)
             window_run = run(w) if bound else run
-            yield w, core_of(w, to_numpy(window_run(jnp.asarray(left[rows, cols]),
-                                                    jnp.asarray(right[rows, cols]))))
+            yield w, core_of(w, to_numpy(window_run(jax.device_put(left[rows, cols]),
+                                                    jax.device_put(right[rows, cols]))))
 
     return assemble(height, width, pieces())
