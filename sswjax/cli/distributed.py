@@ -22,12 +22,13 @@ from collections.abc import Iterator
 
 from sswjax._files import InputError
 from sswjax.cluster import DaskEngine
+from sswjax.cluster.cores import usable_cores
 from sswjax.cluster.workers import INSTALL, connect, dashboard, require_distributed
 from sswjax.runtime.compilation import default_cache_dir
 from sswjax.runtime.plan import ExecutionPlan
 
-__all__ = ["cache_folder", "cluster_plan", "cluster_session", "require_cluster", "wants_cluster",
-           "worker_budget"]
+__all__ = ["cache_folder", "cluster_plan", "cluster_session", "require_cluster",
+           "shared_cores_note", "wants_cluster", "worker_budget"]
 
 
 def wants_cluster(args: argparse.Namespace) -> bool:
@@ -61,11 +62,33 @@ def worker_budget(args: argparse.Namespace) -> tuple[int, bool, float | None]:
     return args.workers, True, args.max_memory
 
 
+def shared_cores_note(workers: int, cores: int) -> str | None:
+    """The line that says ``--workers N`` asks for more workers than the machine has cores
+    (None when it does not). Each worker is pinned to a core (the slots wrap around), so two
+    on one core share it: no faster than one per core, and with the memory of both.
+
+    Examples
+    --------
+    >>> shared_cores_note(2, 2) is None
+    True
+    >>> shared_cores_note(3, 2)
+    'sswjax: note: --workers 3 on 2 cores: some workers share a core, no faster than --workers 2'
+    """
+    if workers <= cores:
+        return None
+    return (f"sswjax: note: --workers {workers} on {cores} cores: some workers share a core, "
+            f"no faster than --workers {cores}")
+
+
 @contextlib.contextmanager
 def cluster_session(args: argparse.Namespace) -> Iterator[object]:
     """A ``distributed.Client`` for the run (``--workers`` or ``--scheduler``), closed after
     it, with a line on stderr naming its workers and dashboard."""
     require_cluster(args)
+    if getattr(args, "scheduler", None) is None:
+        note = shared_cores_note(args.workers, usable_cores())
+        if note:
+            print(note, file=sys.stderr)
     with connect(workers=getattr(args, "workers", None),
                  scheduler=getattr(args, "scheduler", None)) as client:
         workers = len(client.nthreads())

@@ -15,7 +15,7 @@ import contextlib
 import os
 from collections.abc import Mapping
 
-__all__ = ["core_slots", "pin_to_core", "pin_worker"]
+__all__ = ["core_slots", "pin_to_core", "pin_worker", "usable_cores"]
 
 
 def core_slots(workers: Mapping[str, Mapping]) -> dict[str, int]:
@@ -42,6 +42,13 @@ def core_slots(workers: Mapping[str, Mapping]) -> dict[str, int]:
 def _name_order(name: str) -> tuple:
     """Numbers in their order (2 before 10), other names after them as text."""
     return (0, int(name), "") if name.isdigit() else (1, 0, name)
+
+
+def usable_cores() -> int:
+    """The cores this process may use: its CPU affinity where the system has one, else all."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
 
 
 def pin_to_core(slot: int) -> int | None:

@@ -9,6 +9,7 @@ Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair
 
 from __future__ import annotations
 
+import argparse
 import os
 import signal
 import subprocess
@@ -23,7 +24,9 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 import sswjax
+from sswjax.cli.distributed import cluster_session
 from sswjax.cluster import PairJob, match_folder, match_pairs, match_tiles
+from sswjax.cluster.cores import usable_cores
 from sswjax.cluster.workers import PINNED_FLAGS, pin_workers, worker_environment
 from sswjax.data.io import read_image, read_pfm
 
@@ -222,3 +225,18 @@ def test_without_dask_the_options_say_what_to_install(tmp_path, texture, where):
     assert run.stderr == (f"sswjax: error: {where[0]} runs on Dask, which is not installed: "
                           'pip install "sswjax[distributed]"\n')
     assert not (tmp_path / "out").exists()
+
+
+def test_more_workers_than_cores_are_told_they_share_a_core(capsys):
+    """``--workers N`` above the cores still runs, with one line saying that workers share a
+    core (the pins wrap around) and how many are worth starting."""
+    cores = usable_cores()
+    args = argparse.Namespace(workers=cores + 1, scheduler=None)
+    with cluster_session(args) as client:
+        assert len(client.nthreads()) == cores + 1
+    err = capsys.readouterr().err
+    assert f"--workers {cores + 1} on {cores} cores: some workers share a core, no faster " \
+           f"than --workers {cores}" in err
+    with cluster_session(argparse.Namespace(workers=1, scheduler=None)):
+        pass
+    assert "share a core" not in capsys.readouterr().err
