@@ -53,7 +53,7 @@ times = {"import": time.perf_counter() - start}
 enable_compilation_cache(path=sys.argv[4])
 t = time.perf_counter()
 left, right = prepare_pair(read_image(sys.argv[1]), read_image(sys.argv[2]))
-left, right = jax.numpy.asarray(left), jax.numpy.asarray(right)
+left, right = jax.device_put(left), jax.device_put(right)
 params, ndisp = sswjax.preset(sys.argv[5]), int(sys.argv[3])
 times["read"] = time.perf_counter() - t
 t = time.perf_counter()
@@ -177,7 +177,7 @@ def main() -> None:
     calib = dict(line.strip().split("=", 1) for line in open(folder / "calib.txt") if "=" in line)
     left, right, ndisp = folder / "im0.png", folder / "im1.png", int(calib["ndisp"])
     with tempfile.TemporaryDirectory() as cache:  # the bytecode cache written before timing
-        subprocess.run([sys.executable, "-c", "import sswjax.cli.app"],
+        subprocess.run([sys.executable, "-c", "import sswjax.cli.match, sswjax.cli.warmup"],
                        env=child_environment(Path(cache)), check=True)
     rows = [row for preset in args.presets
             for row in measure(left, right, ndisp, preset, args.repeat)]
