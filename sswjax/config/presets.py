@@ -61,7 +61,8 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 )
 # The smoothing of accurate and fast as a row then a column of its window (3.5x fewer weights
 # per pass): the cheapest point of the grid within 0.05 of the held-out choice at bad 2.0 on
-# every set (benchmarks/smoothing.py, docs/precision.md); balanced and finest keep the square.
+# every set (benchmarks/smoothing.py, docs/precision.md); balanced takes it by the same rule
+# (docs/band.md, "The separable smoothing in balanced"); finest keeps the square.
 _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True))
 _FAST = _SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
@@ -77,8 +78,8 @@ PRESETS: dict[str, Preset] = {
                    "the same method on the pair halved (three side-window passes), the map "
                    "doubled back guided by the left image (coarse-to-fine): about 5x faster, "
                    "less precise below 2 pixels"),
-    "balanced": Preset(_ACCURATE_WINDOWS.replace(coarse=CoarseToFine(levels=1),
-                                         band=DisparityBand(width=7)),
+    "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1),
+                                 band=DisparityBand(width=7)),
                        "accurate on the pair halved, then again at full resolution over 7 "
                        "disparities around each pixel's doubled disparity (the band): about 2x "
                        "faster than accurate, ahead of it on KITTI and Middlebury 2001 at "
