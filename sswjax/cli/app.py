@@ -32,7 +32,7 @@ COMMANDS = ("match", "demo", "evaluate", "download", "params", "rectify", "searc
 """The sub-commands, in the order ``--help`` lists them. Module ``sswjax.cli.<name>`` defines
 ``add_<name>_command(subparsers)``, which adds the command's parser and sets its ``run``. A
 command line imports only the module of the command it names: ``search`` brings optax,
-``evaluate`` its figures and ``download`` its fetcher, about 0.15 s of a ``match``'s start-up
+``evaluate`` its figures and ``download`` its fetcher, about 0.1 s of a ``match``'s start-up
 (``docs/speed-and-memory.md``). The modules are named here rather than imported at the top so
 that this is so; ``tests/test_architecture.py`` checks each of them as if it were imported."""
 
@@ -109,4 +109,3 @@ def console() -> int:
         return main()
     finally:
         gc.freeze()
-
