@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import subprocess
 import sys
 
@@ -14,13 +15,15 @@ import pytest
 
 import sswjax
 from sswjax.cli import guard, main
-from sswjax.cli.app import COMMANDS, build_parser, commands_needed
 from sswjax.cli import match as cli_match
+from sswjax.cli.app import COMMANDS, build_parser, commands_needed
 from sswjax.config.fields import option_fields
 from sswjax.config.parts import unregister
 from sswjax.data.io import read_image, read_pfm, write_pfm
 from sswjax.runtime import memory
+from sswjax.runtime.executables import COMPILING_UNCACHED
 from sswjax.runtime.memory import MemoryEstimateError
+from sswjax.runtime.stored import COMPILING
 
 NDISP = 12
 
@@ -132,6 +135,28 @@ def test_the_console_script_runs_main_and_leaves_its_objects_to_the_exit(tmp_pat
                          capture_output=True, text=True, check=True)
     assert run.stdout.splitlines()[-1] == "0 True"
     assert json.loads(second.read_text()) == json.loads(first.read_text())
+
+
+def test_a_first_match_says_it_compiles_and_a_warm_one_does_not(pair, tmp_path):
+    """A first call for an image size compiles for seconds: ``match`` says so in one note. A
+    second process finds the graph in the cache and says nothing; without the cache every
+    process compiles, and says that."""
+    cache = tmp_path / "cache"
+    env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
+
+    def notes(*before):
+        out = tmp_path / "d.pfm"
+        out.unlink(missing_ok=True)
+        done = subprocess.run([sys.executable, "-m", "sswjax.cli", *before, "match",
+                               str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", "8",
+                               "--preset", "fast", "-o", str(out)],
+                              env=env, capture_output=True, text=True)
+        assert done.returncode == 0 and out.exists(), done.stderr
+        return [line for line in done.stderr.splitlines() if "compiling" in line]
+
+    assert notes() == [f"sswjax: note: {COMPILING.format(folder=cache)}"]
+    assert notes() == []
+    assert notes("--no-cache") == [f"sswjax: note: {COMPILING_UNCACHED}"]
 
 
 def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):

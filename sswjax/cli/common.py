@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import os
 import shlex
 import signal
@@ -29,7 +30,7 @@ from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_disparity_png, write_float_
 from sswjax.data.scaled import write_scaled_disparity
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "check_output_files",
-           "check_outputs", "command_line", "disparity_writers", "gigabytes", "HelpFormatter",
+           "check_outputs", "command_line", "compile_notes", "disparity_writers", "gigabytes", "HelpFormatter",
            "interrupt_flag", "Interrupted", "Parser", "raise_if_interrupted",
            "remembered_interrupts", "resume_command", "uninterrupted",
            "write_disparity_map", "Writer"]
@@ -83,6 +84,24 @@ class Interrupted(KeyboardInterrupt):
 
 _RECEIVED: list[int] = []
 """SIGINTs received under :func:`remembered_interrupts` (the process has one SIGINT handler)."""
+
+
+@contextlib.contextmanager
+def compile_notes():
+    """Show, for the block, what the package logs at ``INFO`` (the ``sswjax`` logger: that a
+    call is about to compile its graph, which takes seconds the first time an image size and
+    parameters are met) as ``sswjax: note: ...`` lines on stderr."""
+    logger = logging.getLogger("sswjax")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("sswjax: note: %(message)s"))
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 @contextlib.contextmanager

@@ -31,7 +31,8 @@ from sswjax._files import atomic_outputs
 from sswjax.api.auto_range import estimate_range
 from sswjax.api.match import match, match_with_confidence
 from sswjax.api.rectify import rectification, rectified_calibration
-from sswjax.cli.common import OUTPUT_FORMATS, check_outputs, disparity_writers, gigabytes
+from sswjax.cli.common import (OUTPUT_FORMATS, check_outputs, compile_notes, disparity_writers,
+                               gigabytes)
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
 from sswjax.cli.distributed import cluster_plan
@@ -185,7 +186,7 @@ def run_match(args: argparse.Namespace) -> int:
     elif args.alpha is not None or args.cameras is not None:
         raise ValueError(f"{'--alpha' if args.alpha is not None else '--cameras'} goes with "
                          "--rectify STEREO_CALIB")
-    with atomic_outputs(outputs.values()) as files:  # each destination proven writable here
+    with compile_notes(), atomic_outputs(outputs.values()) as files:  # destinations writable
         raw_left, raw_right = read_image(args.left), read_image(args.right)
         left, right, pair = raw_left, raw_right, None
         if stereo is not None:

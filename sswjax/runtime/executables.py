@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import logging
 import os
 import types
 from collections.abc import Callable, Hashable, Sequence
@@ -29,7 +30,14 @@ import numpy as np
 
 from sswjax.runtime.stored import StoredGraph, graph_folder
 
-__all__ = ["DEFAULT_LIMIT", "EXECUTABLES", "BoundedJit", "ExecutableCache", "bounded"]
+__all__ = ["COMPILING_UNCACHED", "DEFAULT_LIMIT", "EXECUTABLES", "BoundedJit", "ExecutableCache",
+           "bounded"]
+
+_LOG = logging.getLogger(__name__)
+COMPILING_UNCACHED = ("compiling the graph for this image size and these parameters: seconds "
+                      "(the compilation cache is off: again in every process)")
+"""The note logged (``logging.INFO``) when a stored function meets a new signature with the
+persistent cache off: the call compiles it."""
 
 DEFAULT_LIMIT = 32
 """Compiled graphs kept alive by default (``$SSWJAX_MAX_EXECUTABLES`` changes it): about 17,000
@@ -133,6 +141,8 @@ class BoundedJit:
     def _jit(self, args: tuple, kwargs: dict) -> Callable:
         folder = graph_folder() if self._stored else None
         if folder is None:
+            if self._stored:
+                _LOG.info(COMPILING_UNCACHED)
             return jax.jit(_fresh(self._fn), static_argnames=self._static)
         return StoredGraph(self._fn, args, kwargs, static=self._static, folder=folder)
 

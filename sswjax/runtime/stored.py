@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import os
 import pickle
 import platform
@@ -54,10 +55,15 @@ import jax
 import jaxlib
 from jax.experimental import serialize_executable
 
-__all__ = ["StoredGraph", "compile_lowered", "executables_stored", "graph_folder", "graph_key",
-           "host_digest", "source_digest"]
+__all__ = ["COMPILING", "StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
+           "graph_key", "host_digest", "source_digest"]
 
 _SUFFIX = ".jaxexport"
+_LOG = logging.getLogger(__name__)
+COMPILING = ("compiling the graph for this image size and these parameters: seconds, once "
+             "(kept in {folder} for later runs)")
+"""The note logged (``logging.INFO``, the ``sswjax`` logger) when a stored graph is missing and
+the call will trace it and, unless XLA's cache has it, compile it; the command line shows it."""
 _EXECUTABLE_SUFFIX = ".xlaexec"
 
 
@@ -265,6 +271,7 @@ class StoredGraph:
         exported = _load(self._path, _read_graph)
         self._trace_read = exported is not None
         if exported is None:
+            _LOG.info(COMPILING.format(folder=self._path.parent.parent))
             treedef, fixed, fn = self._treedef, self._fixed, self._fn
 
             def flat(*values):
