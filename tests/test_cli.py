@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import pty
 import subprocess
 import sys
 
@@ -137,26 +138,45 @@ def test_the_console_script_runs_main_and_leaves_its_objects_to_the_exit(tmp_pat
     assert json.loads(second.read_text()) == json.loads(first.read_text())
 
 
-def test_a_first_match_says_it_compiles_and_a_warm_one_does_not(pair, tmp_path):
-    """A first call for an image size compiles for seconds: ``match`` says so in one note. A
-    second process finds the graph in the cache and says nothing; without the cache every
-    process compiles, and says that."""
+def _stderr_on_a_terminal(argv: list[str], env: dict) -> tuple[int, list[str]]:
+    """Run ``argv`` with its stderr on a pseudo-terminal; its exit status and stderr's lines."""
+    reader, writer = pty.openpty()
+    try:
+        done = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=writer)
+    finally:
+        os.close(writer)
+    chunks = []
+    with contextlib.suppress(OSError):  # the terminal's end: EIO once all is read
+        while chunk := os.read(reader, 4096):
+            chunks.append(chunk)
+    os.close(reader)
+    return done.returncode, b"".join(chunks).decode().splitlines()
+
+
+def test_a_first_match_says_it_compiles_on_a_terminal_and_a_warm_one_does_not(pair, tmp_path):
+    """A first call for an image size compiles for seconds: ``match`` says so in one note on a
+    terminal. A second process finds the graph in the cache and says nothing; without the cache
+    every process compiles, and says that. Where stderr is not a terminal (a script, a log),
+    nothing is added to it."""
     cache = tmp_path / "cache"
     env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
+    out = tmp_path / "d.pfm"
+
+    def argv(*before):
+        out.unlink(missing_ok=True)
+        return [sys.executable, "-m", "sswjax.cli", *before, "match", str(pair / "im0.png"),
+                str(pair / "im1.png"), "--ndisp", "8", "--preset", "fast", "-o", str(out)]
 
     def notes(*before):
-        out = tmp_path / "d.pfm"
-        out.unlink(missing_ok=True)
-        done = subprocess.run([sys.executable, "-m", "sswjax.cli", *before, "match",
-                               str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", "8",
-                               "--preset", "fast", "-o", str(out)],
-                              env=env, capture_output=True, text=True)
-        assert done.returncode == 0 and out.exists(), done.stderr
-        return [line for line in done.stderr.splitlines() if "compiling" in line]
+        code, lines = _stderr_on_a_terminal(argv(*before), env)
+        assert code == 0 and out.exists(), lines
+        return [line.strip() for line in lines if "compiling" in line]
 
     assert notes() == [f"sswjax: note: {COMPILING.format(folder=cache)}"]
     assert notes() == []
     assert notes("--no-cache") == [f"sswjax: note: {COMPILING_UNCACHED}"]
+    piped = subprocess.run(argv("--no-cache"), env=env, capture_output=True, text=True)
+    assert piped.returncode == 0 and "compiling" not in piped.stderr
 
 
 def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):

@@ -90,7 +90,12 @@ _RECEIVED: list[int] = []
 def compile_notes():
     """Show, for the block, what the package logs at ``INFO`` (the ``sswjax`` logger: that a
     call is about to compile its graph, which takes seconds the first time an image size and
-    parameters are met) as ``sswjax: note: ...`` lines on stderr."""
+    parameters are met) as ``sswjax: note: ...`` lines on stderr, when stderr is a terminal:
+    a person waits there, while a script reading stderr gets only what it got before (a bad
+    input's one line)."""
+    if not sys.stderr.isatty():
+        yield
+        return
     logger = logging.getLogger("sswjax")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("sswjax: note: %(message)s"))
