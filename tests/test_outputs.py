@@ -10,6 +10,7 @@ for the whole file (one for ``match``, one for ``match_with_confidence``).
 from __future__ import annotations
 
 import errno
+import json
 import os
 import shutil
 import tempfile
@@ -294,6 +295,21 @@ def test_params_output_is_not_its_input(pair, tmp_path, run_cli):
     link.symlink_to(pair.params)
     code, _, err = run_cli(["params", "--params", link, "-o", pair.params])
     _one_line_error(code, err, "is the same file as the input --params")
+
+
+def test_params_dash_output_prints_and_other_outputs_refuse_a_dash(pair, tmp_path, run_cli,
+                                                                   monkeypatch):
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    code, out, err = run_cli(["params", "--preset", "fast", "-o", "-"])
+    assert code == 0, err
+    assert json.loads(out)["format"] == "sswjax-params/2"
+    # The other outputs are files: '-' is refused, not written as a file named '-'.
+    code, _, err = run_cli(["match", pair.left, pair.right, "--ndisp", 16, "-o", "d.pfm",
+                            "--png", "-"])
+    _one_line_error(code, err, "output -: this option writes a file, not standard output")
+    assert list(work.iterdir()) == []
 
 
 def test_demo_refuses_before_running_and_writes_both_maps_or_none(tmp_path, run_cli, monkeypatch):

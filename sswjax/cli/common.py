@@ -209,13 +209,24 @@ def command_line(args: argparse.Namespace) -> list[str]:
 def check_output_files(*paths: Path | None) -> None:
     """Fail before any work if an output file cannot be created where the user asked.
 
-    Raises ``ValueError`` (one line) for a path that is a folder or an existing read-only
+    Raises ``ValueError`` (one line) for ``-`` (read by many tools as standard output, where
+    sswjax would write a file named ``-``), a path that is a folder or an existing read-only
     file, or whose folder is missing, not a folder or not writable; ``None`` entries (outputs
     not asked for) are skipped.
+
+    Examples
+    --------
+    >>> check_output_files(Path("-"))
+    Traceback (most recent call last):
+    ...
+    ValueError: output -: this option writes a file, not standard output: name a file
     """
     for path in paths:
         if path is None:
             continue
+        if str(path) == "-":
+            raise ValueError("output -: this option writes a file, not standard output: "
+                             "name a file")
         if path.is_dir():
             raise ValueError(f"output {path} is a folder, expected a file name")
         folder = path.parent
@@ -250,8 +261,7 @@ def check_outputs(outputs: Mapping[str, Path | None],
     >>> check_outputs({"-o": Path("d.pfm"), "--png": Path("./d.pfm")})
     Traceback (most recent call last):
     ...
-    ValueError: -o d.pfm and --png d.pfm are the same file: give each output its own path
-    """
+    ValueError: -o d.pfm and --png d.pfm are the same file: give each output its own path    """
     outputs = [(option, Path(path)) for option, path in outputs.items() if path is not None]
     inputs = [(name, Path(path)) for name, path in (inputs or {}).items() if path is not None]
     for option, path in outputs:

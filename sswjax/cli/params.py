@@ -36,7 +36,8 @@ def add_params_command(commands) -> None:
                              "and each kind's options (static or traced, values, default)")
     add_parameter_options(parser, "the")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE",
-                        help="write the JSON to FILE (atomically) instead of printing it")
+                        help="write the JSON to FILE (atomically) instead of printing it; "
+                             "'-o -' prints it")
     parser.set_defaults(run=run_params)
 
 
@@ -109,7 +110,8 @@ def run_params(args: argparse.Namespace) -> int:
             raise ValueError(f"--list prints the catalogue of stages: it takes no {given[0]}")
         print(catalogue())
         return 0
-    check_outputs({"-o": args.output}, {"--params": args.params})
+    output = None if args.output == Path("-") else args.output
+    check_outputs({"-o": output}, {"--params": args.params})
     params, execution = params_from_args(args)
     execution = chosen_execution(execution)
     if execution:
@@ -118,9 +120,9 @@ def run_params(args: argparse.Namespace) -> int:
         print(f"sswjax: note: {listed} in {args.params} is how a call runs, not a parameter: "
               f"left out; pass {options} to sswjax match", file=sys.stderr)
     provenance = _provenance(args)
-    if args.output is None:
+    if output is None:
         print(json.dumps(document(params, provenance), indent=2))
         return 0
-    save_params(args.output, params, provenance=provenance)
-    print(f"wrote {args.output}")
+    save_params(output, params, provenance=provenance)
+    print(f"wrote {output}")
     return 0
