@@ -184,6 +184,38 @@ def test_a_warmed_shape_is_matched_without_tracing_or_compiling(small_pair, tmp_
     assert (tmp_path / "d.pfm").read_bytes() == (tmp_path / "plain.pfm").read_bytes()
 
 
+_LAPACK_OR_NOT = """
+import sys
+from pathlib import Path
+import jax, jax.numpy as jnp, numpy as np
+from sswjax.runtime.stored import StoredGraph
+functions = {"inverse": jnp.linalg.inv, "plain": lambda a: a @ a + 1}
+a = jax.device_put(np.eye(3, dtype=np.float32) * 2)
+graph = StoredGraph(functions[sys.argv[2]], (a,), {}, static=(), folder=Path(sys.argv[1]))
+out = np.asarray(graph(a))
+print(graph.executable_loaded, graph.loaded, "scipy.linalg" in sys.modules, out.sum())
+"""
+
+
+@pytest.mark.parametrize("store", ["1", "0"])
+def test_a_stored_graph_runs_in_a_new_process_with_or_without_lapack(tmp_path, store):
+    """A stored executable that calls LAPACK (``jnp.linalg.inv``; the ``plane`` fill solves
+    with it) once died on its first run in a new process with a segmentation fault: nothing
+    there had registered LAPACK's kernels. A stored trace that calls none is lowered without
+    them, and without importing SciPy (0.14 s)."""
+    env = dict(os.environ, SSWJAX_STORE_EXECUTABLES=store)
+    for name, total in (("inverse", 1.5), ("plain", 21.0)):
+        runs = [subprocess.run([sys.executable, "-c", _LAPACK_OR_NOT, str(tmp_path), name],
+                               env=env, capture_output=True, text=True, timeout=300)
+                for _ in range(2)]
+        assert [run.returncode for run in runs] == [0, 0], runs[-1].stderr
+        (first, again) = [run.stdout.split() for run in runs]
+        assert first[:2] == ["False", "False"] and float(first[3]) == total
+        assert again[:2] == [str(store == "1"), "True"] and float(again[3]) == total
+        if name == "plain" and store == "0":
+            assert again[2] == "False"  # the trace lowered, SciPy not imported
+
+
 _STORING_EVERYTHING = """
 import sys
 import sswjax.runtime.stored as stored

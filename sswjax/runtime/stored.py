@@ -7,18 +7,20 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
 ``sswjax match``. This module keeps two files per graph in ``<compilation cache>/graphs``:
 
 - the lowered program, serialized by ``jax.export`` (StableHLO, ``.jaxexport``): a process that
-  finds it deserializes it and lowers a call to it (a fraction of the trace); XLA's cache then
-  gives the executable;
+  finds it deserializes it and lowers a call to it (a fraction of the trace; without importing
+  SciPy for LAPACK where the program calls none, :mod:`sswjax.runtime.lapack`); XLA's cache
+  then gives the executable;
 - the compiled executable itself (``.xlaexec``, :mod:`jax.experimental.serialize_executable`),
   written by the process in which XLA compiled it (not read it from XLA's cache:
   :func:`compile_lowered`), keyed further by the host (:func:`host_digest`: the backend and
   its version, the devices, ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA
   compiles for): a process that finds it loads it directly, and skips the lowering as well
   (0.25 s of ``accurate``'s first call on a trainingQ pair). It is stored and read only when
-  ``SSWJAX_STORE_EXECUTABLES=1`` (:func:`executables_stored`): a test worker that had compiled
-  and run many graphs crashed (a segmentation fault) in the first run of an executable read
-  from such a file, from a cache shared with other processes, and the cause is not known.
-  It is used for calls on concrete arrays of the default device; a call under a
+  ``SSWJAX_STORE_EXECUTABLES=1`` (:func:`executables_stored`). A test worker once crashed (a
+  segmentation fault) in the first run of such an executable: it called LAPACK (the ``plane``
+  fill solves with it) and nothing in that process had registered LAPACK's kernels, which
+  lowering a call does. The file now says whether its executable calls LAPACK, and the kernels
+  are registered before it is loaded (:mod:`sswjax.runtime.lapack`). It is used for calls on concrete arrays of the default device; a call under a
   transformation (a tracer among the arguments)
   or with arrays on another device goes through the lowered program as above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
@@ -54,6 +56,8 @@ from pathlib import Path
 import jax
 import jaxlib
 from jax.experimental import serialize_executable
+
+from sswjax.runtime.lapack import calls_lapack, lowering_without_lapack, register_lapack
 
 __all__ = ["COMPILING", "StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
            "graph_key", "host_digest", "source_digest"]
@@ -164,25 +168,38 @@ def _load(path: Path, read: Callable):
         return None
 
 
-def _read_graph(data: bytes) -> jax.export.Exported:
-    return jax.export.deserialize(bytearray(data))
+def _graph_bytes(exported: jax.export.Exported, lapack: bool) -> bytes:
+    """The file of a trace: ``L`` if its module calls LAPACK (``lapack``,
+    :func:`calls_lapack`), else ``N``, then ``exported.serialize()``."""
+    return (b"L" if lapack else b"N") + bytes(exported.serialize())
 
 
-def _executable_bytes(compiled: jax.stages.Compiled) -> bytes:
-    """The file of an executable: the SHA-256 of the pickle, then the pickle of
-    ``serialize_executable.serialize(compiled)`` (machine code, its argument and result
-    trees)."""
-    data = pickle.dumps(serialize_executable.serialize(compiled))
+def _read_graph(data: bytes) -> tuple[jax.export.Exported, bool]:
+    """The trace of a file of :func:`_graph_bytes`, and whether it calls LAPACK."""
+    if data[:1] not in (b"L", b"N"):
+        raise ValueError("not a stored trace")
+    return jax.export.deserialize(bytearray(data[1:])), data[:1] == b"L"
+
+
+def _executable_bytes(compiled: jax.stages.Compiled, lapack: bool) -> bytes:
+    """The file of an executable: the SHA-256 of the rest, ``L`` if it calls LAPACK
+    (``lapack``) else ``N``, then the pickle of ``serialize_executable.serialize(compiled)``
+    (machine code, its argument and result trees)."""
+    data = (b"L" if lapack else b"N") + pickle.dumps(serialize_executable.serialize(compiled))
     return hashlib.sha256(data).digest() + data
 
 
 def _read_executable(data: bytes) -> jax.stages.Compiled:
-    """The executable of a file of :func:`_executable_bytes`, loaded on the default device; a
-    file whose digest does not match (damaged) raises before any byte is unpickled."""
+    """The executable of a file of :func:`_executable_bytes`, loaded on the default device,
+    LAPACK's kernels registered first if it calls them (:func:`register_lapack`: without them
+    its first run is a segmentation fault); a file whose digest does not match (damaged)
+    raises before any byte is unpickled."""
     digest, data = data[:32], data[32:]
-    if hashlib.sha256(data).digest() != digest:
+    if hashlib.sha256(data).digest() != digest or data[:1] not in (b"L", b"N"):
         raise ValueError("a damaged stored executable")
-    payload, in_tree, out_tree = pickle.loads(data)
+    if data[:1] == b"L":
+        register_lapack()
+    payload, in_tree, out_tree = pickle.loads(data[1:])
     return serialize_executable.deserialize_and_load(
         payload, in_tree, out_tree, execution_devices=jax.devices()[:1])
 
@@ -250,7 +267,7 @@ class StoredGraph:
             f"{self._path.stem}-{host_digest()[:16]}{_EXECUTABLE_SUFFIX}"
         ) if executables_stored() else None
         self._device = jax.devices()[0]
-        self._call, self._compiled, self._trace_read = None, None, False
+        self._call, self._compiled, self._trace_read, self._lapack = None, None, False, True
         self.executable_loaded = self._read_executable()
         if not self.executable_loaded:
             self._traced()
@@ -268,9 +285,11 @@ class StoredGraph:
         """The jitted call of the stored trace (read, or traced here and stored), made once."""
         if self._call is not None:
             return self._call
-        exported = _load(self._path, _read_graph)
-        self._trace_read = exported is not None
-        if exported is None:
+        stored = _load(self._path, _read_graph)
+        self._trace_read = stored is not None
+        if stored is not None:
+            exported, self._lapack = stored
+        else:
             _LOG.info(COMPILING.format(folder=self._path.parent.parent))
             treedef, fixed, fn = self._treedef, self._fixed, self._fn
 
@@ -280,8 +299,9 @@ class StoredGraph:
 
             flat.__name__ = fn.__name__
             exported = jax.export.export(jax.jit(flat))(*self._specs)
+            self._lapack = calls_lapack(exported)
             try:
-                _write_atomically(self._path, bytes(exported.serialize()))
+                _write_atomically(self._path, _graph_bytes(exported, self._lapack))
             except (ImportError, ValueError, OSError):
                 pass  # flatbuffers missing, an output without a serialized name, a full disk
         call = exported.call
@@ -293,11 +313,19 @@ class StoredGraph:
         self._call = jax.jit(named)
         return self._call
 
+    def _through_trace(self, leaves: Sequence, *, lower: bool = False):
+        """Call (or with ``lower``, lower) the jitted stored trace on ``leaves``; a trace that
+        calls no LAPACK kernel is lowered without registering them (:mod:`.lapack`: no SciPy
+        import, 0.14 s of a warm process)."""
+        call = self._traced()
+        with lowering_without_lapack(not self._lapack):
+            return call.lower(*leaves) if lower else call(*leaves)
+
     def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
         """The compiled graph: kept, else read from ``folder``, else lowered and compiled
         (through XLA's persistent cache) and stored when XLA compiled it here."""
         if self._compiled is None and not self._read_executable():
-            compiled, fresh = compile_lowered(self._traced().lower(*leaves))
+            compiled, fresh = compile_lowered(self._through_trace(leaves, lower=True))
             self.keep(compiled, fresh=fresh)
         return self._compiled
 
@@ -311,7 +339,8 @@ class StoredGraph:
         if not fresh or self._executable_path is None:
             return
         try:
-            _write_atomically(self._executable_path, _executable_bytes(compiled))
+            _write_atomically(self._executable_path,
+                              _executable_bytes(compiled, self._lapack))
         except (ValueError, TypeError, NotImplementedError, pickle.PicklingError, OSError):
             pass
 
@@ -335,12 +364,12 @@ class StoredGraph:
     def lower(self, *args, **kwargs):
         """``jax.stages.Lowered`` of a call through the stored trace (its ``compile()`` takes
         :meth:`flat`'s leaves): for timing the phases of a first call."""
-        return self._traced().lower(*self.flat(*args, **kwargs))
+        return self._through_trace(self.flat(*args, **kwargs), lower=True)
 
     def __call__(self, *args, **kwargs):
         leaves = self.flat(*args, **kwargs)
         if not _runs_here(leaves, self._device):
-            return self._traced()(*leaves)
+            return self._through_trace(leaves)
         compiled = self._executable(leaves)
         if not self._unproven:
             return compiled(*leaves)
@@ -353,7 +382,7 @@ class StoredGraph:
         except jax.errors.JaxRuntimeError:
             self._compiled = None
             self._executable_path.unlink(missing_ok=True)
-            return self._traced()(*leaves)
+            return self._through_trace(leaves)
 
     def clear_cache(self) -> None:
         """Drop the compiled executable (as ``jax.jit``'s ``clear_cache``)."""
