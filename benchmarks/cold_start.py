@@ -4,14 +4,14 @@ For each preset, in new Python processes (nothing shared with this one but the f
 
 1. ``sswjax match LEFT RIGHT --ndisp N -o OUT.pfm`` from the command line, timed from outside
    (process start to exit), first with an empty compilation cache (a new folder), then again
-   with that folder warm (the default: the stored trace lowered and the executable found in
-   XLA's cache), then warm with the stored executables read (``SSWJAX_STORE_EXECUTABLES=1``,
-   opt-in: :mod:`sswjax.runtime.stored`), and in a fresh folder after ``sswjax warmup --like
-   LEFT``. The empty run stores the executables, so that the opt-in row finds them.
+   with that folder warm (the default: the stored executable read, :mod:`sswjax.runtime.stored`),
+   then warm with the trace only (``SSWJAX_STORE_EXECUTABLES=0``: the stored trace lowered and
+   the executable found in XLA's cache), and in a fresh folder after ``sswjax warmup --like
+   LEFT``.
 2. The same pair through the API's stored graph (:mod:`sswjax.runtime.stored`), the phases
    timed inside the process: ``import sswjax``, tracing the graph (empty cache) or loading its
-   stored trace (warm) or executable (opt-in: then nothing is lowered or compiled, 0 in those
-   columns), lowering
+   stored executable (warm: then nothing is lowered or compiled, 0 in those columns) or trace
+   (trace only), lowering
    it, compiling it (or finding it in XLA's cache), the first run, and a warm run. Python's
    bytecode cache is on in every process (:func:`child_environment`).
 
@@ -82,7 +82,7 @@ print(json.dumps(times))
 """
 
 
-def child_environment(cache: Path, executables: bool = False) -> dict[str, str]:
+def child_environment(cache: Path, executables: bool = True) -> dict[str, str]:
     """The environment of a measured process: ``cache`` as its compilation cache, compiled
     executables stored and read if ``executables``, and Python's bytecode cache on, as a user's
     Python has it (without ``PYTHONDONTWRITEBYTECODE``, which some sandboxes set: then every
@@ -104,7 +104,7 @@ def warmup_seconds(left: Path, ndisp: int, preset: str, cache: Path) -> float:
 
 
 def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path,
-                executables: bool = False) -> float:
+                executables: bool = True) -> float:
     """Wall time of one ``sswjax match`` in a new process, with ``cache`` as its XLA cache."""
     with tempfile.TemporaryDirectory() as out:
         env = child_environment(cache, executables)
@@ -116,7 +116,7 @@ def cli_seconds(left: Path, right: Path, ndisp: int, preset: str, cache: Path,
 
 
 def api_phases(left: Path, right: Path, ndisp: int, preset: str, cache: Path,
-               executables: bool = False) -> dict:
+               executables: bool = True) -> dict:
     """The phases of a first API call in a new process (seconds per phase, and the total)."""
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", _CHILD, str(left), str(right), str(ndisp),
@@ -134,20 +134,20 @@ def spread(values: list[float]) -> str:
 
 def measure(left: Path, right: Path, ndisp: int, preset: str, repeat: int) -> list[dict]:
     """Rows of the report for one preset, CLI then API: an empty cache; the same cache warm
-    (the default: the stored trace lowered, XLA's cache gives the executable); warm with the
-    stored executables read (``SSWJAX_STORE_EXECUTABLES=1``), measured right after; and for the
-    CLI a fresh cache after ``sswjax warmup``."""
+    (the default: the stored executable read); warm with the trace only
+    (``SSWJAX_STORE_EXECUTABLES=0``: the stored trace lowered, XLA's cache gives the
+    executable), measured right after; and for the CLI a fresh cache after ``sswjax warmup``."""
     rows = []
     for surface, once in (("CLI", cli_seconds), ("API", api_phases)):
-        runs = {"empty": [], "warm": [], "warm, executables stored (opt-in)": []}
+        runs = {"empty": [], "warm": [], "warm, trace only": []}
         if surface == "CLI":
             runs["after warmup"] = []
         for _ in range(repeat):
             with tempfile.TemporaryDirectory() as cache:
-                runs["empty"].append(once(left, right, ndisp, preset, Path(cache), True))
+                runs["empty"].append(once(left, right, ndisp, preset, Path(cache)))
                 runs["warm"].append(once(left, right, ndisp, preset, Path(cache)))
-                runs["warm, executables stored (opt-in)"].append(
-                    once(left, right, ndisp, preset, Path(cache), True))
+                runs["warm, trace only"].append(
+                    once(left, right, ndisp, preset, Path(cache), False))
             if surface == "CLI":
                 with tempfile.TemporaryDirectory() as cache:  # filled by sswjax warmup --like
                     warmup_seconds(left, ndisp, preset, Path(cache))
@@ -185,9 +185,9 @@ def main() -> None:
     header = "| " + " | ".join(keys) + " |\n|" + "---|" * len(keys) + "\n"
     table = (f"First call on trainingQ {args.scene} ({ndisp} disparities), fresh processes, "
              f"seconds, median (min-max) of {args.repeat}; warm (the default): the graph's "
-             "stored trace lowered, XLA's cache gives the executable; warm, executables "
-             "stored (opt-in, SSWJAX_STORE_EXECUTABLES=1): the executable read, nothing "
-             "lowered or compiled, run right after\n\n" + header
+             "stored executable read, nothing lowered or compiled; warm, trace only "
+             "(SSWJAX_STORE_EXECUTABLES=0): the graph's stored trace lowered, XLA's cache "
+             "gives the executable, run right after\n\n" + header
              + "\n".join("| " + " | ".join(str(row.get(k, "")) for k in keys) + " |"
                          for row in rows))
     write_report(args.output, "cold_start", table, rows, keys)

@@ -28,9 +28,9 @@ _PARAMS = sswjax.preset("paper").replace(segments=None, smoothing=None)
 def _xla_compiles_here(monkeypatch):
     """XLA's persistent cache off in this process (whether an earlier test of the worker turned
     it on or not): an executable read from it is not stored, and these tests store. The command
-    line tests below run with the cache, in their own processes. Executables are stored (an
-    opt-in, ``SSWJAX_STORE_EXECUTABLES=1``) here and in those processes, but where a test says
-    otherwise."""
+    line tests below run with the cache, in their own processes. Executables are stored
+    (``SSWJAX_STORE_EXECUTABLES=1``, the default) here and in those processes, but where a test
+    says otherwise."""
     monkeypatch.setattr(jax_compilation_cache, "is_cache_used", lambda backend: False)
     monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "1")
 
@@ -63,8 +63,8 @@ def test_a_stored_graph_gives_the_jitted_results_bit_for_bit(tmp_path, pair):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-def test_executables_are_stored_only_when_asked(tmp_path, pair, monkeypatch):
-    monkeypatch.delenv("SSWJAX_STORE_EXECUTABLES")
+def test_executables_are_stored_unless_turned_off(tmp_path, pair, monkeypatch):
+    monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "0")
     fn = ssw_disparity.__wrapped__
     expected = np.asarray(ssw_disparity(*pair, _PARAMS, ndisp=8))
     np.testing.assert_array_equal(
@@ -72,7 +72,7 @@ def test_executables_are_stored_only_when_asked(tmp_path, pair, monkeypatch):
         expected)
     assert len(list(tmp_path.glob("*.jaxexport"))) == 1
     assert not list(tmp_path.glob("*.xlaexec"))
-    monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "1")
+    monkeypatch.delenv("SSWJAX_STORE_EXECUTABLES")  # the default: stored
     _stored(fn, tmp_path, *pair, _PARAMS, ndisp=8)(*pair, _PARAMS, ndisp=8)
     (executable,) = tmp_path.glob("*.xlaexec")
     monkeypatch.setenv("SSWJAX_STORE_EXECUTABLES", "0")
