@@ -26,8 +26,9 @@ LAYERS = (
 """The layers, lowest first: a module imports only from its own layer and those before it."""
 
 OPTIONAL = ("cv2", "pandora", "pandora_plugin_libsgm", "xarray", "matplotlib", "plyfile", "py7zr",
-            "tifffile", "open3d", "dask", "distributed", "zstandard")
-"""Optional dependencies: the only imports allowed inside functions (they may be absent)."""
+            "tifffile", "open3d", "dask", "distributed", "zstandard", "fcntl")
+"""Optional dependencies, and modules of some systems only (``fcntl``: not on Windows): the only
+imports allowed inside functions or blocks (they may be absent)."""
 
 MAX_LINES = 400
 

@@ -12,36 +12,21 @@ one core before XLA starts its pool gets a pool of one thread. Linux only
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
-from collections.abc import Mapping
+import tempfile
+from pathlib import Path
 
-__all__ = ["core_slots", "pin_to_core", "pin_worker", "usable_cores"]
+try:
+    import fcntl
+except ImportError:  # Windows has none: its processes are left as they are
+    fcntl = None
 
+__all__ = ["claim_core", "pin_to_core", "pin_worker", "usable_cores"]
 
-def core_slots(workers: Mapping[str, Mapping]) -> dict[str, int]:
-    """Each worker's slot among the workers of its host: 0, 1, ... in the order of their names.
-
-    ``workers`` as a scheduler lists them (``client.scheduler_info()["workers"]``: address ->
-    a mapping with ``"host"`` and ``"name"``); the result maps each worker's name (as a
-    string) to its slot, the core :func:`pin_to_core` gives it.
-
-    Examples
-    --------
-    >>> core_slots({"tcp://a:1": {"host": "a", "name": 1}, "tcp://a:2": {"host": "a", "name": 0},
-    ...             "tcp://b:1": {"host": "b", "name": "b-0"}})
-    {'0': 0, '1': 1, 'b-0': 0}
-    """
-    hosts: dict[str, list[str]] = {}
-    for address, info in workers.items():
-        hosts.setdefault(str(info.get("host", address)), []).append(
-            str(info.get("name", address)))
-    return {name: slot for names in hosts.values()
-            for slot, name in enumerate(sorted(names, key=_name_order))}
-
-
-def _name_order(name: str) -> tuple:
-    """Numbers in their order (2 before 10), other names after them as text."""
-    return (0, int(name), "") if name.isdigit() else (1, 0, name)
+_HELD: dict[str, tuple[int | None, int | None]] = {}
+"""The core this process claimed per namespace, and the lock's file descriptor (kept open: the
+lock lasts as long as the process)."""
 
 
 def usable_cores() -> int:
@@ -69,11 +54,52 @@ def pin_to_core(slot: int) -> int | None:
     return core
 
 
-def pin_worker(slots: Mapping[str, int], dask_worker) -> int | None:
-    """A Dask worker's setup callback (``functools.partial(pin_worker, slots)`` given to
+def claim_core(namespace: str, *, folder: Path | None = None) -> int | None:
+    """Pin this process to a core that no other process of ``namespace`` on this host holds.
+
+    The cores are those this process may use now; each has a lock file in ``folder`` (default
+    a folder of this user's under the system's temporary folder) per ``namespace``, and the
+    process takes the first it can lock (``fcntl.flock``, without waiting). It keeps the lock
+    while it lives, and the system releases it when the process ends, so a process started
+    later (a restarted or a late worker) takes a core that is free again. When every core is
+    held, the process shares one (its pid modulo their count). A process claims once per
+    namespace: a second call returns the same core.
+
+    Returns the core, or None where the system has no CPU affinity or no ``flock`` (Linux has
+    both); the process is then left as it is.
+    """
+    if namespace in _HELD:
+        return _HELD[namespace][0]
+    if fcntl is None or not hasattr(os, "sched_getaffinity") or \
+            not os.path.isdir("/proc/self/task"):
+        return None
+    cores = sorted(os.sched_getaffinity(0))
+    folder = Path(folder) if folder is not None else _lock_folder()
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    key = hashlib.sha256(namespace.encode()).hexdigest()[:16]
+    for slot, core in enumerate(cores):
+        handle = os.open(folder / f"{key}-{core}.lock", os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(handle)
+            continue
+        _HELD[namespace] = (pin_to_core(slot), handle)
+        return _HELD[namespace][0]
+    _HELD[namespace] = (pin_to_core(os.getpid()), None)
+    return _HELD[namespace][0]
+
+
+def _lock_folder() -> Path:
+    """This user's folder of core locks under the system's temporary folder (POSIX, as
+    ``fcntl``)."""
+    return Path(tempfile.gettempdir()) / f"sswjax-cores-{os.getuid()}"
+
+
+def pin_worker(namespace: str, dask_worker=None) -> int | None:
+    """A Dask worker's setup callback (``functools.partial(pin_worker, namespace)`` given to
     ``Client.register_worker_callbacks``, which runs it in every worker now and in every worker
-    that starts later): pins ``dask_worker``'s process to the core of its slot in ``slots``
-    (worker name as a string -> slot, :func:`core_slots`). Returns the core, or None for a
-    worker not named in ``slots`` (left as it is) or a system without CPU affinity."""
-    slot = slots.get(str(dask_worker.name))
-    return None if slot is None else pin_to_core(slot)
+    that starts later, a restarted or a late one): pins the worker's process to a core no other
+    worker of ``namespace`` (its cluster: the scheduler's address) holds on its host
+    (:func:`claim_core`). Returns the core, or None on a system without CPU affinity."""
+    return claim_core(namespace)

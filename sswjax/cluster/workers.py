@@ -8,9 +8,10 @@ Each worker runs one task at a time (one thread), and the worker process is pinn
 (its CPU affinity, :mod:`sswjax.cluster.cores`): XLA CPU sizes its pool of threads by the cores
 a process may use, whatever its flags say, so an unpinned worker spread each graph over every
 core of the machine (1.6 of this machine's 2) and ``N`` workers contended for them. The workers
-of one host take its cores in turn; a setup callback pins each worker when it is registered
-and again when its nanny restarts it (:func:`pin_workers`, which :func:`connect` calls for the
-clusters it starts or joins). The environment of :func:`worker_environment` keeps
+of a cluster on one host each take a core that no other holds (a lock per core); a setup
+callback pins each worker when it is registered, again when its nanny restarts it, and each
+worker that joins later (:func:`pin_workers`, which :func:`connect` calls for the clusters it
+starts or joins). The environment of :func:`worker_environment` keeps
 Eigen and the BLAS libraries on one thread too. Every task enables the persistent compilation
 cache in the folder it is given (:func:`prepare_worker`), once per process: a shape compiled by
 one worker is read from the shared folder by the others.
@@ -26,7 +27,7 @@ import functools
 import os
 from collections.abc import Iterator, Mapping
 
-from sswjax.cluster.cores import core_slots, pin_worker
+from sswjax.cluster.cores import pin_worker
 from sswjax.runtime.compilation import enable_compilation_cache
 
 __all__ = ["INSTALL", "PINNED_FLAGS", "connect", "dashboard", "local_cluster", "pin_workers",
@@ -106,8 +107,9 @@ def pin_workers(client) -> list[str]:
     the environment (through their nannies).
 
     The cores: a setup callback (:func:`~sswjax.cluster.cores.pin_worker`) pins each worker
-    now, and whenever it starts again, to the core of its slot among its host's workers
-    (:func:`~sswjax.cluster.cores.core_slots`); a worker that joins later is left as it starts.
+    now, whenever it starts again, and each worker that joins later, to a core that no other
+    worker of this cluster (named by its scheduler's address) holds on its host
+    (:func:`~sswjax.cluster.cores.claim_core`).
     """
     require_distributed()
     from distributed.diagnostics.plugin import Environ
@@ -118,8 +120,8 @@ def pin_workers(client) -> list[str]:
     if unpinned:
         client.register_plugin(Environ(worker_environment()), name="sswjax-pinned-threads")
         client.wait_for_workers(len(flags))
-    slots = core_slots(client.scheduler_info(n_workers=-1)["workers"])
-    client.register_worker_callbacks(setup=functools.partial(pin_worker, slots))
+    client.register_worker_callbacks(
+        setup=functools.partial(pin_worker, client.scheduler_info()["address"]))
     return unpinned
 
 

@@ -154,6 +154,31 @@ def test_each_worker_is_pinned_to_a_core_of_its_own_and_stays_so_when_restarted(
     assert core in after.values()
 
 
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="CPU affinity (Linux) and two cores")
+def test_a_worker_that_joins_later_is_pinned_to_a_free_core():
+    def threads_cores():        # in a worker (nested: sent by value): each thread's cores
+        return sorted({tuple(sorted(os.sched_getaffinity(int(thread))))
+                       for thread in os.listdir("/proc/self/task")})
+
+    with distributed.LocalCluster(n_workers=1, processes=True, threads_per_worker=1,
+                                  dashboard_address=None, env=worker_environment()) as cluster, \
+            distributed.Client(cluster) as client:
+        client.wait_for_workers(1, timeout=120)
+        pin_workers(client)
+        cluster.scale(2)                               # a worker started after the pins
+        client.wait_for_workers(2, timeout=120)
+        deadline = time.monotonic() + 60
+        while True:                                    # its setup callback runs as it starts
+            pins = client.run(threads_cores)
+            if all(len(cores) == 1 and len(cores[0]) == 1 for cores in pins.values()) or \
+                    time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
+    assert all(len(cores) == 1 and len(cores[0]) == 1 for cores in pins.values()), pins
+    assert len({cores[0] for cores in pins.values()}) == 2, pins
+
+
 def test_a_bad_pair_is_named_and_the_others_are_written(client, tmp_path, texture, run_cli,
                                                         cache, monkeypatch):
     left, right = _folders(tmp_path, texture, 3, seed=50)
