@@ -17,6 +17,7 @@ from jax._src import compilation_cache as jax_compilation_cache
 
 import sswjax
 from sswjax.graph import ssw_disparity, ssw_outputs
+from sswjax.runtime import folder_bound
 from sswjax.runtime.stored import StoredGraph, graph_key, host_digest, source_digest
 
 _STATIC = ("ndisp", "chunk", "measure")
@@ -96,6 +97,25 @@ def test_another_signature_is_another_graph(tmp_path, pair):
     smaller = tuple(image[:, :-1] for image in pair)
     assert not _stored(fn, tmp_path, *smaller, params, ndisp=8).loaded  # a shape
     assert len(list(tmp_path.glob("*.jaxexport"))) == 4
+
+
+def test_the_folder_keeps_the_most_recently_used_graphs_within_its_bound(tmp_path, pair,
+                                                                         monkeypatch):
+    fn = ssw_disparity.__wrapped__
+    _stored(fn, tmp_path, *pair, _PARAMS, ndisp=8)(*pair, _PARAMS, ndisp=8)
+    (trace,), (executable,) = tmp_path.glob("*.jaxexport"), tmp_path.glob("*.xlaexec")
+    size = trace.stat().st_size + executable.stat().st_size
+    for path in (trace, executable):
+        os.utime(path, (1, 1))                             # used long ago
+    assert _stored(fn, tmp_path, *pair, _PARAMS, ndisp=8).executable_loaded
+    assert executable.stat().st_mtime > 1 and trace.stat().st_mtime == 1  # read: used now
+    bound = 2 * size - trace.stat().st_size // 2           # room for two graphs but a trace
+    monkeypatch.setattr(folder_bound, "GRAPHS_BYTES", bound)
+    _stored(fn, tmp_path, *pair, _PARAMS, ndisp=9)(*pair, _PARAMS, ndisp=9)
+    kept = list(tmp_path.iterdir())
+    assert sum(path.stat().st_size for path in kept) <= bound
+    assert not trace.exists() and executable.exists()     # the least recently used went
+    assert len(kept) == 3
 
 
 def test_the_key_holds_the_source_and_the_static_values(pair):

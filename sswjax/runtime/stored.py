@@ -39,7 +39,8 @@ the same XLA; ``tests/test_stored_graphs.py``).
 Nothing is stored when the compilation cache is off (:func:`graph_folder` is ``None``: the
 caller then jits as usual) or when serialization is not possible (``flatbuffers`` missing, an
 output type without a serialized name: the graph traced in this process is used). A damaged
-file is replaced.
+file is replaced. The folder is bounded, the least recently used files removed first
+(:mod:`sswjax.runtime.folder_bound`, 8 GiB).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ import jax
 import jaxlib
 from jax.experimental import serialize_executable
 
+from sswjax.runtime.folder_bound import touch, trim
 from sswjax.runtime.lapack import calls_lapack, lowering_without_lapack, register_lapack
 
 __all__ = ["COMPILING", "StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
@@ -144,7 +146,7 @@ def graph_key(fn: Callable, treedef, specs: Sequence[jax.ShapeDtypeStruct],
 
 def _write_atomically(path: Path, data: bytes) -> None:
     """``data`` to ``path`` through a temporary file renamed into place (concurrent processes
-    storing the same graph each write a whole file; the last rename wins)."""
+    each write a whole file; the last rename wins), then the folder trimmed to its bound."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=".", suffix=".part")
     try:
@@ -154,20 +156,23 @@ def _write_atomically(path: Path, data: bytes) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+    trim(path.parent)
 
 
 def _load(path: Path, read: Callable):
-    """``read(bytes)`` of the file at ``path``, or ``None`` (absent, or damaged: then
-    removed)."""
+    """``read(bytes)`` of the file at ``path``, marked as used now, or ``None`` (absent, or
+    damaged: then removed)."""
     try:
         data = path.read_bytes()
     except OSError:
         return None
     try:
-        return read(data)
+        value = read(data)
     except Exception:  # noqa: BLE001 - any unreadable file: made again and stored anew
         path.unlink(missing_ok=True)
         return None
+    touch(path)
+    return value
 
 
 def _graph_bytes(exported: jax.export.Exported, lapack: bool) -> bytes:
