@@ -261,7 +261,8 @@ def check_outputs(outputs: Mapping[str, Path | None],
     >>> check_outputs({"-o": Path("d.pfm"), "--png": Path("./d.pfm")})
     Traceback (most recent call last):
     ...
-    ValueError: -o d.pfm and --png d.pfm are the same file: give each output its own path    """
+    ValueError: -o d.pfm and --png d.pfm are the same file: give each output its own path
+    """
     outputs = [(option, Path(path)) for option, path in outputs.items() if path is not None]
     inputs = [(name, Path(path)) for name, path in (inputs or {}).items() if path is not None]
     for option, path in outputs:

@@ -96,7 +96,7 @@ def _lock_folder() -> Path:
     return Path(tempfile.gettempdir()) / f"sswjax-cores-{os.getuid()}"
 
 
-def pin_worker(namespace: str, dask_worker=None) -> int | None:
+def pin_worker(namespace: str, dask_worker) -> int | None:
     """A Dask worker's setup callback (``functools.partial(pin_worker, namespace)`` given to
     ``Client.register_worker_callbacks``, which runs it in every worker now and in every worker
     that starts later, a restarted or a late one): pins the worker's process to a core no other

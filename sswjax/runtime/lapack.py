@@ -77,7 +77,7 @@ def _install() -> bool:
 
 
 @contextlib.contextmanager
-def lowering_without_lapack(skip: bool = True) -> Iterator[None]:
+def lowering_without_lapack(*, skip: bool = True) -> Iterator[None]:
     """Within the block, this thread lowers calls to exported modules without registering
     LAPACK's kernels (when ``skip``; a module that calls one must be lowered with ``skip``
     False, see :func:`calls_lapack`)."""

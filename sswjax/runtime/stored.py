@@ -327,7 +327,7 @@ class StoredGraph:
         calls no LAPACK kernel is lowered without registering them (:mod:`.lapack`: no SciPy
         import, 0.14 s of a warm process)."""
         call = self._traced()
-        with lowering_without_lapack(not self._lapack):
+        with lowering_without_lapack(skip=not self._lapack):
             return call.lower(*leaves) if lower else call(*leaves)
 
     def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
