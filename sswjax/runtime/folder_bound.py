@@ -30,9 +30,9 @@ def touch(path: Path) -> None:
 
 def trim(folder: Path, *, bound: int | None = None) -> list[Path]:
     """Remove the least recently used files of ``folder`` (by modification time) until their
-    bytes are within ``bound`` (default :data:`GRAPHS_BYTES`); returns the removed paths. Hidden files (a write in progress,
-    ``.NAME.tmp``) are neither counted nor removed; a folder that cannot be read is left as it
-    is.
+    bytes are within ``bound`` (default :data:`GRAPHS_BYTES`); returns the removed paths.
+    Hidden files (a write in progress, ``.NAME.part``) are neither counted nor removed; a
+    folder that cannot be read is left as it is.
 
     Examples
     --------

@@ -4,11 +4,11 @@ Lowering a call to a ``jax.export.Exported`` for the CPU (``Exported.call`` unde
 first registers jaxlib's LAPACK kernels (``jax._src.export._export._ensure_backends_initialized``
 on jax 0.10), which imports ``scipy.linalg`` to take their addresses: 0.14 s of a warm process's
 first call, in which the whole lowering takes about 0.2 s. The kernels are needed only by a
-module that calls them (a ``lapack_*`` custom call, from ``jnp.linalg`` and the like); sswjax's
-graphs call none. :func:`calls_lapack` tells it from the module's text when the trace is made,
-and within :func:`lowering_without_lapack` this thread lowers calls to traces without the
-registration. Other threads, and any call where this jax has no such function, lower as JAX
-does.
+module that calls them (a ``lapack_*`` custom call, from ``jnp.linalg`` and the like); of
+sswjax's graphs, only those with the ``plane`` fill do. :func:`calls_lapack` tells it from
+the module's text when the trace is made, and within :func:`lowering_without_lapack` this
+thread lowers calls to traces without the registration. Other threads, and any call where
+this jax has no such function, lower as JAX does.
 
 The registration is also what an executable compiled in another process needs before it runs
 (a stored one, :mod:`sswjax.runtime.stored`): one that calls LAPACK, loaded where nothing

@@ -21,9 +21,9 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   in that process had registered LAPACK's kernels, which lowering a call does. The file says
   whether its executable calls LAPACK, and the kernels are registered before it is loaded
   (:mod:`sswjax.runtime.lapack`). The executable is compressed (zlib: 1.8 MB to 0.33 MB for
-  ``accurate`` on a trainingQ pair, 4 ms to expand). It is used for calls on concrete arrays of the default device; a call under a
-  transformation (a tracer among the arguments)
-  or with arrays on another device goes through the lowered program as above. The first run
+  ``accurate`` on a trainingQ pair, 4 ms to expand). It is used for calls on concrete arrays
+  of the default device; a call under a transformation (a tracer among the arguments) or with
+  arrays on another device goes through the lowered program as above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
   the call goes through the lowered program. The file is a pickle that loads machine code:
   like XLA's own cache, the folder must be one only trusted users write to.
