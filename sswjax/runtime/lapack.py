@@ -20,6 +20,7 @@ them first.
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 import threading
 from collections.abc import Iterator
@@ -92,7 +93,9 @@ def lowering_without_lapack(*, skip: bool = True) -> Iterator[None]:
         _STATE.skip = before
 
 
+@functools.cache
 def register_lapack() -> None:
     """Register LAPACK's kernels in this process for the default backend, as lowering a call
-    to one does (it lowers one: ``jnp.linalg.inv`` of a 1 x 1 matrix; nothing is compiled)."""
+    to one does (it lowers one: ``jnp.linalg.inv`` of a 1 x 1 matrix; nothing is compiled).
+    Once per process: the registration holds for every later executable."""
     jax.jit(jnp.linalg.inv).lower(jax.ShapeDtypeStruct((1, 1), jnp.float32))

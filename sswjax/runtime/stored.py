@@ -77,8 +77,7 @@ _EXECUTABLE_SUFFIX = ".xlaexec"
 
 def executables_stored() -> bool:
     """Whether compiled executables are stored and read: yes, unless
-    ``SSWJAX_STORE_EXECUTABLES=0``; the stored traces and XLA's own cache are used either
-    way."""
+    ``SSWJAX_STORE_EXECUTABLES=0`` (the traces and XLA's own cache are used either way)."""
     return os.environ.get("SSWJAX_STORE_EXECUTABLES", "1") != "0"
 
 
@@ -160,8 +159,7 @@ def _write_atomically(path: Path, data: bytes) -> None:
 
 
 def _load(path: Path, read: Callable):
-    """``read(bytes)`` of the file at ``path``, marked as used now, or ``None`` (absent, or
-    damaged: then removed)."""
+    """``read(bytes)`` of the file at ``path``, marked used now; ``None`` if absent or damaged."""
     try:
         data = path.read_bytes()
     except OSError:
@@ -175,40 +173,42 @@ def _load(path: Path, read: Callable):
     return value
 
 
-def _graph_bytes(exported: jax.export.Exported, lapack: bool) -> bytes:
-    """The file of a trace: ``L`` if its module calls LAPACK (``lapack``,
-    :func:`calls_lapack`), else ``N``, then ``exported.serialize()``."""
-    return (b"L" if lapack else b"N") + bytes(exported.serialize())
+def _flagged(lapack: bool, body: bytes) -> bytes:
+    """``L`` if the program calls LAPACK (:func:`calls_lapack`), else ``N``, then ``body``."""
+    return (b"L" if lapack else b"N") + body
+
+
+def _unflagged(data: bytes) -> tuple[bool, bytes]:
+    """Whether a file of :func:`_flagged` calls LAPACK, and its body."""
+    if data[:1] not in (b"L", b"N"):
+        raise ValueError("not a stored graph file")
+    return data[:1] == b"L", data[1:]
 
 
 def _read_graph(data: bytes) -> tuple[jax.export.Exported, bool]:
-    """The trace of a file of :func:`_graph_bytes`, and whether it calls LAPACK."""
-    if data[:1] not in (b"L", b"N"):
-        raise ValueError("not a stored trace")
-    return jax.export.deserialize(bytearray(data[1:])), data[:1] == b"L"
+    """The trace of a file ``_flagged(lapack, exported.serialize())``, and ``lapack``."""
+    lapack, body = _unflagged(data)
+    return jax.export.deserialize(bytearray(body)), lapack
 
 
 def _executable_bytes(compiled: jax.stages.Compiled, lapack: bool) -> bytes:
-    """The file of an executable: the SHA-256 of the rest, ``L`` if it calls LAPACK
-    (``lapack``) else ``N``, then the zlib-compressed pickle of
-    ``serialize_executable.serialize(compiled)`` (machine code, its argument and result
-    trees)."""
-    data = (b"L" if lapack else b"N") + zlib.compress(
-        pickle.dumps(serialize_executable.serialize(compiled)))
+    """The file of an executable: the SHA-256 of the rest, then :func:`_flagged` the zlib
+    of the pickle of ``serialize_executable.serialize(compiled)`` (its code and trees)."""
+    data = _flagged(lapack, zlib.compress(pickle.dumps(serialize_executable.serialize(compiled))))
     return hashlib.sha256(data).digest() + data
 
 
 def _read_executable(data: bytes) -> jax.stages.Compiled:
-    """The executable of a file of :func:`_executable_bytes`, loaded on the default device,
-    LAPACK's kernels registered first if it calls them (:func:`register_lapack`: without them
-    its first run is a segmentation fault); a file whose digest does not match (damaged)
-    raises before any byte is unpickled."""
+    """The executable of a file of :func:`_executable_bytes` on the default device, LAPACK's
+    kernels registered first if it calls them (without, its first run is a segmentation
+    fault); a damaged file (digest) raises before any byte is unpickled."""
     digest, data = data[:32], data[32:]
-    if hashlib.sha256(data).digest() != digest or data[:1] not in (b"L", b"N"):
+    if hashlib.sha256(data).digest() != digest:
         raise ValueError("a damaged stored executable")
-    if data[:1] == b"L":
+    lapack, body = _unflagged(data)
+    if lapack:
         register_lapack()
-    payload, in_tree, out_tree = pickle.loads(zlib.decompress(data[1:]))
+    payload, in_tree, out_tree = pickle.loads(zlib.decompress(body))
     return serialize_executable.deserialize_and_load(
         payload, in_tree, out_tree, execution_devices=jax.devices()[:1])
 
@@ -310,7 +310,7 @@ class StoredGraph:
             exported = jax.export.export(jax.jit(flat))(*self._specs)
             self._lapack = calls_lapack(exported)
             try:
-                _write_atomically(self._path, _graph_bytes(exported, self._lapack))
+                _write_atomically(self._path, _flagged(self._lapack, bytes(exported.serialize())))
             except (ImportError, ValueError, OSError):
                 pass  # flatbuffers missing, an output without a serialized name, a full disk
         call = exported.call
