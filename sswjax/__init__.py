@@ -13,9 +13,19 @@ arrays) -> ``config`` (the parameters, per stage) -> ``graph`` (the jitted metho
 ``runtime`` (execution plans: buckets, strips, memory, devices) -> ``api`` (the NumPy front
 door) -> ``data`` / ``evaluation`` / ``search`` -> ``cli``. This module only names the public
 API.
+
+Python's garbage collector is paused while this module imports JAX and the package (and set
+back as it was after): the objects of an import live as long as the process, and the
+collections that their allocations set off scanned them again and again, 0.03-0.05 s of the
+import (``docs/speed-and-memory.md``, "The collector during the import").
 """
 
-from sswjax._version import __version__
+import gc
+
+_COLLECTING = gc.isenabled()
+gc.disable()
+
+from sswjax._version import __version__  # noqa: E402  (the imports the pause is for)
 from sswjax.api.geometry import Calibration, depth_from_disparity, point_cloud
 from sswjax.api.match import Matched, match, match_with_confidence
 from sswjax.api.warmup import warm_up
@@ -27,6 +37,13 @@ from sswjax.graph import aggregated_cost, ssw_disparity, ssw_outputs
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.memory import MemoryEstimateError
 from sswjax.runtime.plan import ExecutionPlan
+
+if not gc.get_freeze_count():  # (the importer's frozen objects stay frozen)
+    gc.freeze()
+    gc.unfreeze()
+if _COLLECTING:
+    gc.enable()
+del _COLLECTING
 
 __all__ = [
     "Calibration",

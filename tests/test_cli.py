@@ -138,6 +138,22 @@ def test_the_console_script_runs_main_and_leaves_its_objects_to_the_exit(tmp_pat
     assert json.loads(second.read_text()) == json.loads(first.read_text())
 
 
+@pytest.mark.parametrize("collecting", [True, False])
+def test_importing_the_package_pauses_the_collector_and_sets_it_back(collecting):
+    """JAX and the package import without a single collection (counted from JAX's import to
+    the package's ``__all__``, which follows its imports), and the collector is left on or off
+    as the importer had it."""
+    script = ("import gc, sys; collections = []; "
+              "gc.callbacks.append(lambda phase, info: collections.append(phase) "
+              "if 'jax' in sys.modules and not hasattr(sys.modules['sswjax'], '__all__') "
+              "else None); "
+              f"gc.enable() if {collecting} else gc.disable(); "
+              "import sswjax; print(len(collections), gc.isenabled())")
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=True)
+    assert run.stdout.split() == ["0", str(collecting)]
+
+
 def _stderr_on_a_terminal(argv: list[str], env: dict) -> tuple[int, list[str]]:
     """Run ``argv`` with its stderr on a pseudo-terminal; its exit status and stderr's lines."""
     reader, writer = pty.openpty()

@@ -98,13 +98,16 @@ def console() -> int:
     """The console script ``sswjax`` and ``python -m sswjax.cli``: :func:`main`, in a process
     that ends with it.
 
-    The objects the run left are then moved out of the garbage collector's reach
-    (``gc.freeze``), so that Python's finalisation does not collect them one by one before the
-    process exits: JAX and its compiled graphs leave about 0.2 s of that work, a sixth of a warm
+    The objects the imports made are moved out of the garbage collector's reach first
+    (``gc.freeze``): they live as long as the process, and the collections of the run (a trace
+    makes many) would scan them each time. The objects the run left are frozen too when it
+    ends, so that Python's finalisation does not collect them one by one before the process
+    exits: JAX and its compiled graphs leave about 0.2 s of that work, a sixth of a warm
     ``sswjax match`` (``docs/speed-and-memory.md``). Exit handlers and the closing of modules run
     as before; only the freeing of memory that the exit returns anyway is skipped. Not for a
     process that goes on (tests, notebooks): call :func:`main` there.
     """
+    gc.freeze()
     try:
         return main()
     finally:
