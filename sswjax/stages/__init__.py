@@ -26,6 +26,7 @@ the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the te
 ``upsampling``    the coarse map doubled back, guided by the fine image (coarse-to-fine)
 ``smoothing``     the gated joint-bilateral mean of the finished map
 ``buffers``       values written once instead of recomputed by each reader (XLA fusion)
+``loops``         a pass repeated as one loop of the graph instead of unrolled (compile time)
 ``reference``     direct whole-volume versions the tests check the live stages against
 ================  ================================================================================
 """

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 
 from sswjax._checks import check_map
 from sswjax.stages.filters import SIDE_WINDOWS, edge_pad
+from sswjax.stages.loops import repeated
 
 __all__ = ["median_filter", "median_of_stack", "separable_median_filter",
            "side_window_median_filter"]
@@ -142,7 +143,8 @@ def side_window_median_filter(x: jax.Array, *, radius: int, iterations: int = 1)
     """Side-window median filter: each pixel takes the side-window median closest to its value.
 
     The median counterpart of S-BOX (Yin et al. 2019, Sec. 4), used to refine disparity maps:
-    it removes isolated errors without moving depth edges.
+    it removes isolated errors without moving depth edges. Two or more iterations are one loop
+    of the graph (:func:`~sswjax.stages.loops.repeated`: compiled once).
 
     Parameters
     ----------
@@ -164,7 +166,8 @@ def side_window_median_filter(x: jax.Array, *, radius: int, iterations: int = 1)
     """
     check_map("x", x, radius)
     r = radius
-    for _ in range(iterations):
+
+    def one(x):
         padded = edge_pad(x, r)
         best = best_distance = None
         for v, h in SIDE_WINDOWS:
@@ -181,5 +184,5 @@ def side_window_median_filter(x: jax.Array, *, radius: int, iterations: int = 1)
                 better = distance < best_distance
                 best = jnp.where(better, candidate, best)
                 best_distance = jnp.where(better, distance, best_distance)
-        x = best
-    return x
+        return best
+    return repeated(one, x, times=iterations)

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 from sswjax._checks import check_guide, check_map, check_rank
 from sswjax.stages.buffers import written_once
 from sswjax.stages.filters import edge_pad
+from sswjax.stages.loops import repeated
 
 __all__ = ["gated_bilateral_line_mean", "gated_bilateral_mean", "gated_bilateral_smoothing",
            "line_colour_weights"]
@@ -141,10 +142,13 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     median's sorting networks) into the edge padding of the first pass, whose concatenation it
     runs element by element; with the map in a buffer first, ``accurate``'s whole graph took
     15 % less on trainingQ Motorcycle and Teddy (docs/speed-and-memory.md); an
-    ``optimization_barrier`` does not survive XLA CPU's fusion passes. A pass's result
-    needs no buffer of its own: its exponentials are not fused into the next pass's readers,
-    and a buffer per pass cost ``fast`` (6 passes) about 10 % of its whole call on Motorcycle
-    and Teddy (docs/speed.md). The separable passes read the colour weights of
+    ``optimization_barrier`` does not survive XLA CPU's fusion passes. The row pass's result
+    needs no buffer of its own: its exponentials are not fused into the column pass's readers
+    (a buffer after every pass cost ``fast``, 6 passes, about 10 % of its whole call on
+    Motorcycle and Teddy, docs/speed.md). Two or more iterations are one loop of the graph
+    (:func:`~sswjax.stages.loops.repeated`: compiled once), whose carry is a buffer per
+    iteration: the same warm time for ``accurate`` and ``fast`` (docs/speed-and-memory.md).
+    The separable passes read the colour weights of
     :func:`line_colour_weights`, computed once for all of them (the guide does not change from
     pass to pass): the same result, bit for bit.
 
@@ -163,13 +167,15 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
         _check_inputs(disparity, guide, radius)
         weights = {axis: line_colour_weights(guide, radius=radius, colour_scale=colour_scale,
                                              axis=axis) for axis in (1, 0)}
-    for _ in range(iterations):
-        if separable:
-            for axis in (1, 0):
-                disparity = _gated_line_mean(disparity, weights[axis], gate=gate, axis=axis)
-        else:
-            disparity = gated_bilateral_mean(disparity, guide, **options)
-    return disparity
+    if not separable:
+        return repeated(lambda d: gated_bilateral_mean(d, guide, **options), disparity,
+                        times=iterations)
+
+    def row_then_column(d):
+        for axis in (1, 0):
+            d = _gated_line_mean(d, weights[axis], gate=gate, axis=axis)
+        return d
+    return repeated(row_then_column, disparity, times=iterations)
 
 
 def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets) -> jax.Array:
