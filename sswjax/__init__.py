@@ -38,7 +38,10 @@ from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.memory import MemoryEstimateError
 from sswjax.runtime.plan import ExecutionPlan
 
-if not gc.get_freeze_count():  # (the importer's frozen objects stay frozen)
+# Frozen then unfrozen, every object is in the oldest generation, unscanned: the next young
+# collection does not scan the whole import at once. Skipped if the importer froze objects
+# (``unfreeze`` would thaw them).
+if not gc.get_freeze_count():
     gc.freeze()
     gc.unfreeze()
 if _COLLECTING:

@@ -248,6 +248,7 @@ def side_window_box_filter(
         if guide.shape[:2] != x.shape[-2:]:
             raise ValueError(f"guide size {guide.shape[:2]} differs from x size {x.shape[-2:]}")
         guide = _channels_first(guide)
+
     def one_pass(carry):
         x, guide = carry
         if guide is None:
