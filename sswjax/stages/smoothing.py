@@ -161,15 +161,14 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     >>> [round(v, 2) for v in out[1].tolist()]
     [0.0, 0.33, 0.67, 1.33, 1.67, 2.33, 2.67, 3.0]
     """
-    options = dict(radius=radius, gate=gate, colour_scale=colour_scale)
     disparity = written_once(disparity)
-    if separable:
-        _check_inputs(disparity, guide, radius)
-        weights = {axis: line_colour_weights(guide, radius=radius, colour_scale=colour_scale,
-                                             axis=axis) for axis in (1, 0)}
     if not separable:
-        return repeated(lambda d: gated_bilateral_mean(d, guide, **options), disparity,
-                        times=iterations)
+        return repeated(lambda d: gated_bilateral_mean(
+            d, guide, radius=radius, gate=gate, colour_scale=colour_scale), disparity,
+            times=iterations)
+    _check_inputs(disparity, guide, radius)
+    weights = {axis: line_colour_weights(guide, radius=radius, colour_scale=colour_scale,
+                                         axis=axis) for axis in (1, 0)}
 
     def row_then_column(d):
         for axis in (1, 0):
