@@ -147,9 +147,10 @@ def test_a_stored_cost_gives_the_sums_of_the_float_cost(cost_levels):
         quantisation(cost_bound=1.0, paths=4, p1=0.1, p2=0.6, cost_levels=100)
 
 
-def test_path_penalties_match_reference():
+@pytest.mark.parametrize("channels", [1, 3])
+def test_path_penalties_match_reference(channels):
     rng = np.random.default_rng(3)
-    guide = rng.random((5, 6, 1)).astype(np.float32)
+    guide = rng.random((5, 6, channels)).astype(np.float32)
     labels = rng.integers(0, 3, (5, 6)).astype(np.int32)
     for direction in DIRECTIONS[8]:
         ours = path_penalties(jnp.asarray(guide), direction, p1=0.2, p2=1.0, sigma=0.1,
