@@ -155,7 +155,8 @@ def fold_right_view(disparity: jax.Array, cost: jax.Array, planes, first
     block_index = jnp.zeros((height, width), jnp.int32)
     for k, plane in enumerate(planes):
         # C(u + k, first + k) at u = x_r + first.
-        shifted = jnp.pad(plane[:, k:], ((0, 0), (0, k)), constant_values=worst)
+        # (A block wider than the image leaves no column of its last planes.)
+        shifted = jnp.pad(plane[:, k:], ((0, 0), (0, min(k, width))), constant_values=worst)
         better = shifted < block_cost
         block_cost = jnp.where(better, shifted, block_cost)
         block_index = jnp.where(better, k, block_index)

@@ -41,20 +41,23 @@ def _fold_in_blocks(cost, block, limit):
     return state
 
 
-@pytest.mark.parametrize("block", [1, 3, 8])
-def test_fold_winners_in_blocks_equals_argmin_of_both_views(block):
+@pytest.mark.parametrize("block, width", [(1, 9), (3, 9), (8, 9),
+                                          # blocks past the image's width, wider than it
+                                          (3, 4), (8, 4)])
+def test_fold_winners_in_blocks_equals_argmin_of_both_views(block, width):
     """The running fold equals argmin over the whole volume for the left view (with the costs
     at d -/+ 1) and for the right view C_R(x, d) = C(x + d, d), ties to the smaller d,
     disparities at or beyond ``limit`` ignored, whatever the block size."""
     rng = np.random.default_rng(5)
     ndisp, limit = 8, 6
-    cost = rng.integers(0, 4, size=(ndisp, 4, 9)).astype(np.float32)  # many ties
+    cost = rng.integers(0, 4, size=(ndisp, 4, width)).astype(np.float32)  # many ties
     state = _fold_in_blocks(cost, block, limit)
     inside = cost[:limit]
     left = np.argmin(inside, axis=0)
     np.testing.assert_array_equal(np.asarray(state.disparity), left)
     np.testing.assert_array_equal(np.asarray(state.cost), np.min(inside, axis=0))
-    padded = np.concatenate([np.full((1, 4, 9), np.inf), inside, np.full((1, 4, 9), np.inf)])
+    padded = np.concatenate([np.full((1, 4, width), np.inf), inside,
+                             np.full((1, 4, width), np.inf)])
     rows, cols = np.indices(left.shape)
     np.testing.assert_array_equal(np.asarray(state.before), padded[left, rows, cols])
     np.testing.assert_array_equal(np.asarray(state.after), padded[left + 2, rows, cols])
