@@ -61,38 +61,6 @@ def _shift(image: jax.Array, dy: int, dx: int) -> jax.Array:
     return padded[..., 1 - dy : 1 - dy + height, 1 - dx : 1 - dx + width]
 
 
-def _channel_mean(difference: jax.Array) -> jax.Array:
-    """Mean over the last axis of ``|difference|`` (..., C) -> (...).
-
-    The channels added one by one, not reduced: XLA CPU hands a reduction to its XNNPACK
-    fusion, whose own threads made whole runs up to 2x slower on 2 cores (docs/speed.md)."""
-    change = jnp.abs(difference)
-    return sum(change[..., c] for c in range(change.shape[-1])) / change.shape[-1]
-
-
-def _intensity_change(guide: jax.Array, dy: int, dx: int) -> jax.Array:
-    """``|I(p) - I(p - r)|``, channel mean, float32 (H, W), the guide edge-replicated.
-
-    Along an axis, ``p - r`` beyond the border replicates ``p`` itself: no change there, so the
-    differences of the interior are padded with zeros, one plane, where shifting the padded
-    guide (C planes padded on both axes) cost about 5 ms per direction on Motorcycle Q (XLA
-    CPU writes a padding element by element). A diagonal's replicated neighbour is another
-    pixel: the guide is shifted.
-    """
-    if dy and dx:
-        return _channel_mean(guide - jnp.moveaxis(_shift(jnp.moveaxis(guide, -1, 0), dy, dx),
-                                                  0, -1))
-    axis, step = (0, dy) if dy else (1, dx)
-    size = guide.shape[axis]
-    lower = lax.slice_in_dim(guide, 0, size - 1, axis=axis)
-    upper = lax.slice_in_dim(guide, 1, size, axis=axis)
-    # step +1: p - r is the pixel before (upper - lower at p = i + 1); -1: the one after.
-    change = _channel_mean(upper - lower if step > 0 else lower - upper)
-    pad = [(0, 0), (0, 0)]
-    pad[axis] = (1, 0) if step > 0 else (0, 1)
-    return jnp.pad(change, pad)
-
-
 def path_penalties(
     guide: jax.Array,
     direction: tuple[int, int],
@@ -136,7 +104,10 @@ def path_penalties(
     check_rank("guide", guide, 3)
     check_floating("guide", guide)
     dy, dx = direction
-    change = _intensity_change(guide, dy, dx)
+    change = jnp.abs(guide - jnp.moveaxis(_shift(jnp.moveaxis(guide, -1, 0), dy, dx), 0, -1))
+    # The channels added one by one, not reduced: XLA CPU hands a reduction to its XNNPACK
+    # fusion, whose own threads made whole runs up to 2x slower on 2 cores (docs/speed.md).
+    change = sum(change[..., c] for c in range(change.shape[-1])) / change.shape[-1]
     p1_map = jnp.full(change.shape, p1, jnp.float32)
     p2_map = jnp.maximum(p1_map, p2 / (1.0 + change / sigma))
     if labels is not None:
