@@ -6,7 +6,13 @@ Finds what a stage profile hides: a fusion that carries work of the stage before
 fuses producers into their consumers, and a concatenation or padding at the root of a fusion
 runs element by element, see docs/speed-and-memory.md), or a buffer written afresh each call.
 
-    python benchmarks/top_ops.py --preset accurate --scene Motorcycle [--top 30] [--data DIR]
+With ``--spans``, each stage's wall time too: when its first operation starts and its last
+ends, the time any of its operations runs (the union of their intervals: operations of a stage
+overlap, and an operation's own time counts once however many threads run its partitions) and
+how many operations it runs, then the time between operations of the whole call.
+
+    python benchmarks/top_ops.py --preset accurate --scene Motorcycle [--top 30] [--spans]
+                                 [--data DIR]
 """
 
 from __future__ import annotations
@@ -59,9 +65,10 @@ def stage_of(op_name: str) -> str:
     return min(found)[1] if found else "-"
 
 
-def profile(left, right, params, ndisp, names) -> list[tuple[str, float, int]]:
-    """``(instruction, milliseconds, executions)`` of one warm call, most expensive first;
-    ``names`` from :func:`compiled_tables` (other thunks, loops among them, are left out)."""
+def operation_events(left, right, params, ndisp, names) -> list[dict]:
+    """The trace events (``name``, ``ts``, ``dur`` in microseconds) of the operations of one
+    warm call; ``names`` from :func:`compiled_tables` (other thunks, loops among them, are
+    left out)."""
     for _ in range(2):
         jax.block_until_ready(ssw_disparity(left, right, params, ndisp=ndisp))
     with tempfile.TemporaryDirectory() as directory:
@@ -69,14 +76,48 @@ def profile(left, right, params, ndisp, names) -> list[tuple[str, float, int]]:
             jax.block_until_ready(ssw_disparity(left, right, params, ndisp=ndisp))
         (trace,) = Path(directory).rglob("*.trace.json.gz")
         events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
+    return [event for event in events if event.get("ph") == "X" and event.get("name") in names
+            and not event["name"].startswith("while")]
+
+
+def profile(events: list[dict]) -> list[tuple[str, float, int]]:
+    """``(instruction, milliseconds, executions)``, most expensive first."""
     total, count = collections.Counter(), collections.Counter()
     for event in events:
-        name = event.get("name")
-        if event.get("ph") != "X" or name not in names or name.startswith("while"):
-            continue
-        total[name] += event["dur"] / 1e3
-        count[name] += 1
+        total[event["name"]] += event["dur"] / 1e3
+        count[event["name"]] += 1
     return [(name, ms, count[name]) for name, ms in total.most_common()]
+
+
+def busy_ms(intervals: list[tuple[float, float]]) -> float:
+    """Milliseconds covered by the union of ``(start, end)`` microsecond intervals."""
+    covered, reach = 0.0, None
+    for start, end in sorted(intervals):
+        if reach is None or start > reach:
+            covered, reach = covered + end - start, end
+        elif end > reach:
+            covered, reach = covered + end - reach, end
+    return covered / 1e3
+
+
+def spans(events: list[dict], names: dict[str, str]) -> str:
+    """Each stage's first start and last end (ms from the call's first operation), the time
+    its operations run (union) and their number; then the call's span and idle time."""
+    origin = min(event["ts"] for event in events)
+    by_stage = collections.defaultdict(list)
+    for event in events:
+        by_stage[stage_of(names[event["name"]])].append((event["ts"] - origin,
+                                                         event["ts"] - origin + event["dur"]))
+    lines = ["| stage | first ms | last ms | busy ms | operations |", "|---|---|---|---|---|"]
+    for stage, intervals in sorted(by_stage.items(), key=lambda item: min(item[1])):
+        lines.append(f"| {stage} | {min(intervals)[0] / 1e3:.1f} | "
+                     f"{max(end for _, end in intervals) / 1e3:.1f} | {busy_ms(intervals):.1f} "
+                     f"| {len(intervals)} |")
+    every = [interval for intervals in by_stage.values() for interval in intervals]
+    span = max(end for _, end in every) / 1e3
+    lines.append(f"\ncall: {span:.1f} ms from the first operation to the last, "
+                 f"{span - busy_ms(every):.1f} ms of it with no operation running")
+    return "\n".join(lines)
 
 
 def main() -> None:
@@ -85,13 +126,15 @@ def main() -> None:
     parser.add_argument("--preset", default="accurate", choices=list(sswjax.PRESETS))
     parser.add_argument("--scene", default="Motorcycle")
     parser.add_argument("--top", type=int, default=30)
+    parser.add_argument("--spans", action="store_true", help="each stage's wall time too")
     args = parser.parse_args()
     (scene,) = load_scenes(find_data_root(data=args.data), scenes=[args.scene])
     left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
     params = sswjax.preset(args.preset)
     names, sizes = compiled_tables(ssw_disparity.lower(left, right, params, ndisp=scene.ndisp)
                                    .compile().as_text())
-    rows = profile(left, right, params, scene.ndisp, names)
+    events = operation_events(left, right, params, scene.ndisp, names)
+    rows = profile(events)
     print(f"{args.preset} on {scene.name} ({left.shape[1]} x {left.shape[0]} x {scene.ndisp}): "
           f"{sum(ms for _, ms, _ in rows):.0f} ms of operations (both threads)")
     print("| ms | runs | operation | fused lines | stage | op_name |\n|---|---|---|---|---|---|")
@@ -102,6 +145,8 @@ def main() -> None:
     for name, ms, _ in rows:
         by_stage[stage_of(names[name])] += ms
     print("\nby stage (ms):", ", ".join(f"{s} {ms:.0f}" for s, ms in by_stage.most_common()))
+    if args.spans:
+        print("\n" + spans(events, names))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,43 @@
+"""The pure helpers of benchmarks/top_ops.py (a stage's wall time from a trace) and
+benchmarks/graph_ab.py (a function as a commit defines it)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import jax.numpy as jnp
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+import graph_ab  # noqa: E402
+import top_ops  # noqa: E402
+
+
+def test_busy_time_counts_overlapping_operations_once():
+    # 0-10 and 5-12 overlap (12 us), 20-25 is apart (5 us), 21-22 lies inside it.
+    assert top_ops.busy_ms([(20, 25), (0, 10), (5, 12), (21, 22)]) == pytest.approx(0.017)
+    assert top_ops.busy_ms([(0, 4), (4, 6)]) == pytest.approx(0.006)
+
+
+def test_spans_give_each_stage_and_the_idle_time():
+    names = {"a": "jit(f)/cost/add", "b": "jit(f)/while/body/optimization/min", "c": "jit(f)/x"}
+    events = [{"name": "a", "ts": 100, "dur": 10_000}, {"name": "b", "ts": 15_100, "dur": 5_000},
+              {"name": "b", "ts": 18_100, "dur": 4_000}, {"name": "c", "ts": 30_100, "dur": 1_000}]
+    table = top_ops.spans(events, names)
+    assert "| cost | 0.0 | 10.0 | 10.0 | 1 |" in table
+    assert "| optimization | 15.0 | 22.0 | 7.0 | 2 |" in table
+    assert "| - | 30.0 | 31.0 | 1.0 | 1 |" in table
+    assert "31.0 ms from the first operation to the last, 13.0 ms of it with no operation" in table
+
+
+def test_a_function_as_a_commit_defines_it():
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True,
+                          text=True)
+    if head.returncode != 0:
+        pytest.skip("not a git checkout")
+    found = graph_ab.base_functions("HEAD", "sswjax.stages.loops", ["repeated"])
+    repeated = found["repeated"]
+    assert repeated.__module__ == "sswjax.stages.loops@HEAD"
+    assert float(repeated(lambda x: x * 2.0, jnp.float32(1.0), times=3)) == 8.0
