@@ -120,8 +120,9 @@ def test_match_interrupted_keeps_existing_output(small_pair, tmp_path, run_cli, 
 
 
 def _sigint_in_a_gc_callback() -> None:
-    """Ctrl-C as it often lands in JAX: its handler runs inside a garbage-collection callback,
-    which prints the ``KeyboardInterrupt`` as "Exception ignored" and drops it."""
+    """Ctrl-C as it often lands in JAX: its handler runs inside a garbage-collection callback.
+    Raised there, the ``KeyboardInterrupt`` would be printed as "Exception ignored" with its
+    traceback and dropped; the handler only remembers it there, so nothing is dropped."""
     fired = []
 
     def callback(phase, info):
@@ -137,7 +138,7 @@ def _sigint_in_a_gc_callback() -> None:
     finally:
         gc.callbacks.remove(callback)
         sys.unraisablehook = hook
-    assert fired and [d.exc_type for d in dropped] == [KeyboardInterrupt]
+    assert fired and [d.exc_type for d in dropped] == []
 
 
 @pytest.fixture()
@@ -183,6 +184,7 @@ def test_a_ctrl_c_dropped_in_a_gc_callback_still_interrupts_after_the_scene(tmp_
     fake_method.dropped_interrupt_at = 2
     code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out])
     assert code == 130, err
+    assert "Traceback" not in err and "Exception ignored" not in err
     assert err.strip().splitlines()[-1].startswith(
         f"sswjax: interrupted; 2 of 3 scene results are saved in {out}; continue with: ")
     assert fake_method.calls == [40, 44]

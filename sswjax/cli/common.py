@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import logging
 import os
 import shlex
@@ -115,17 +116,19 @@ def remembered_interrupts():
     does, and is also remembered, so that :func:`raise_if_interrupted` raises it again.
 
     Python runs a signal's handler in whatever Python code runs next. In JAX that is often a
-    garbage-collection callback, whose exceptions Python prints as "Exception ignored" and
-    drops: the loops over scenes and pairs would then run to the end and exit 0. They ask
-    :func:`raise_if_interrupted` after each result instead. Outside the main thread the block
-    runs as it is."""
+    garbage-collection callback, whose exceptions Python drops after printing "Exception
+    ignored" and a traceback: the loops over scenes and pairs would then run to the end and
+    exit 0. They ask :func:`raise_if_interrupted` after each result instead, and inside such a
+    callback the handler only remembers the signal (no traceback for the user). Outside the
+    main thread the block runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(number, frame):
         _RECEIVED.append(number)
-        raise KeyboardInterrupt
+        if not _in_gc_callback(frame):
+            raise KeyboardInterrupt
 
     _RECEIVED.clear()
     previous = signal.signal(signal.SIGINT, handler)
@@ -134,6 +137,17 @@ def remembered_interrupts():
     finally:
         signal.signal(signal.SIGINT, previous)
         _RECEIVED.clear()
+
+
+def _in_gc_callback(frame) -> bool:
+    """Whether ``frame`` (a signal handler's) runs in a function of ``gc.callbacks`` or below one."""
+    codes = {getattr(getattr(callback, "__func__", callback), "__code__", None)
+             for callback in gc.callbacks}
+    while frame is not None:
+        if frame.f_code in codes:
+            return True
+        frame = frame.f_back
+    return False
 
 
 def raise_if_interrupted() -> None:
