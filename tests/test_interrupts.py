@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from sswjax.cli import match as cli_match
+from sswjax.cli.common import interrupt_flag
 from sswjax.data.io import read_pfm, write_pfm
 from sswjax.evaluation import methods
 
@@ -139,6 +140,16 @@ def _sigint_in_a_gc_callback() -> None:
         gc.callbacks.remove(callback)
         sys.unraisablehook = hook
     assert fired and [d.exc_type for d in dropped] == []
+
+
+def test_the_search_flag_is_set_by_a_first_ctrl_c_and_a_second_interrupts():
+    with interrupt_flag() as interrupted:
+        assert not interrupted()
+        signal.raise_signal(signal.SIGINT)      # the first: remembered, nothing raised
+        assert interrupted()
+        _sigint_in_a_gc_callback()              # a second in a GC callback: nothing dropped
+        with pytest.raises(KeyboardInterrupt):
+            signal.raise_signal(signal.SIGINT)  # elsewhere: raised where it lands
 
 
 @pytest.fixture()

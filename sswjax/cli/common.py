@@ -184,8 +184,10 @@ def interrupt_flag():
 
     The search asks it after every step and stops there with its checkpoint saved. Python's
     own handler would raise ``KeyboardInterrupt`` wherever the signal lands, which in JAX is
-    often a garbage-collection callback that swallows it. Outside the main thread the flag
-    stays false."""
+    often a garbage-collection callback that swallows it. The second Ctrl-C raises it where it
+    lands too, except in such a callback (where it would be printed with a traceback and
+    dropped): the step then ends and the flag stops the search. Outside the main thread the
+    flag stays false."""
     received = []
     if threading.current_thread() is not threading.main_thread():
         yield lambda: False
@@ -193,7 +195,8 @@ def interrupt_flag():
 
     def handler(number, frame):
         received.append(number)
-        signal.signal(signal.SIGINT, previous)
+        if len(received) > 1 and not _in_gc_callback(frame):
+            raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGINT, handler)
     try:
