@@ -24,6 +24,7 @@ the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the te
 ``planes``        robust plane per superpixel, filling the pixels it supports
 ``pyramid``       halving and doubling of images and volumes (half-resolution SGM)
 ``upsampling``    the coarse map doubled back, guided by the fine image (coarse-to-fine)
+``refit``         the doubled map's sub-pixel fit again, on the fine level's cost
 ``smoothing``     the gated joint-bilateral mean of the finished map
 ``buffers``       values written once instead of recomputed by each reader (XLA fusion)
 ``loops``         a pass repeated as one loop of the graph instead of unrolled (compile time)
