@@ -33,7 +33,7 @@ NEWER_SLOTS = ("band", "smoothing")
 """Stages added after the flat names: a flat file describes a configuration without them (they
 are off), and a change by flat names keeps them as they are."""
 
-NEWER_OPTIONS = (("selection", "fit"),)
+NEWER_OPTIONS = (("selection", "fit"), ("coarse", "refit_radius"))
 """Options added after the flat names to stages that have them, as ``(slot, option)``: a flat
 file describes them at their defaults, and a change by flat names keeps them as they are."""
 

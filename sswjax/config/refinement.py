@@ -5,7 +5,7 @@ The graph reads these options (:mod:`sswjax.graph.refine`, :mod:`sswjax.graph.co
 :mod:`sswjax.graph.match`); the stage functions are
 :func:`~sswjax.stages.filters.side_window_median_filter`,
 :func:`~sswjax.stages.pyramid.halve_image`,
-:func:`~sswjax.stages.upsampling.upsample_disparity` and
+:func:`~sswjax.stages.upsampling.upsample_disparity`, :mod:`sswjax.stages.refit` and
 :func:`~sswjax.stages.smoothing.gated_bilateral_smoothing` (passes of
 :func:`~sswjax.stages.smoothing.gated_bilateral_mean` or its separable form,
 :func:`~sswjax.stages.smoothing.gated_bilateral_line_mean`).
@@ -34,7 +34,8 @@ class SideWindowMedian(Part):
 @register("coarse", "halving")
 class CoarseToFine(Part):
     """The method on the pair halved ``levels`` times (ndisp halved too), its map doubled back
-    guided by the left image: about 8 ** levels times less volume work (the ``fast`` preset)."""
+    guided by the left image: about 8 ** levels times less volume work (the ``fast`` preset);
+    optionally fitted again on the finer level's cost (``refit_radius``)."""
 
     levels: int = option(1, static=True, low=1, high=4, help="times the pair is halved")
     median_radius: int = option(1, static=True, low=0, high=7,
@@ -45,6 +46,10 @@ class CoarseToFine(Part):
     jump: float = option(3.0, low=0, help="largest spread (fine pixels) of the four coarse "
                          "neighbours that a doubled pixel interpolates; beyond it the nearest "
                          "colour's")
+    refit_radius: int = option(0, static=True, low=0, high=7, help="r > 0: after each "
+                               "doubling, fit each pixel's disparity again on the finer level's "
+                               "matching cost at its rounded disparity and the two beside it, "
+                               "each averaged over a (2r + 1)^2 window; 0: none")
 
     def validate(self, params) -> None:
         """The median's passes need the median."""

@@ -1,4 +1,5 @@
-"""Coarse-to-fine: the method on the pair halved, its map doubled back guided by the left image.
+"""Coarse-to-fine: the method on the pair halved, its map doubled back guided by the left image
+and, optionally, fitted again on the full-resolution cost.
 
 Array conventions: images float32 ``(H, W, C)`` in [0, 1]; the map float32 ``(H, W)`` in fine
 pixels; the confidence cues those of :class:`~sswjax.stages.confidence.ConfidenceCues`.
@@ -14,12 +15,15 @@ import jax.numpy as jnp
 from sswjax.config import Params
 from sswjax.graph.padding import padding_as_edge
 from sswjax.graph.scopes import Stage, scope
+from sswjax.graph.volume import cost_features
+from sswjax.stages.baselines import box_filter
 from sswjax.stages.confidence import ConfidenceCues
 from sswjax.stages.medians import side_window_median_filter
 from sswjax.stages.pyramid import halve_image
+from sswjax.stages.refit import refit_centres, refit_disparity
 from sswjax.stages.upsampling import double_nearest, upsample_disparity
 
-__all__ = ["match_coarse_to_fine"]
+__all__ = ["match_coarse_to_fine", "refit_on_cost"]
 
 
 def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndisp: int,
@@ -27,7 +31,8 @@ def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndis
                          ) -> tuple[jax.Array, ConfidenceCues]:
     """``params.coarse`` with ``levels = L``: the method with ``L - 1`` levels on the pair
     halved, its map doubled back guided by the left image
-    (:func:`~sswjax.stages.upsampling.upsample_disparity`), then a small side-window median.
+    (:func:`~sswjax.stages.upsampling.upsample_disparity`), then a small side-window median
+    and, with ``refit_radius``, the fit on the full-resolution cost (:func:`refit_on_cost`).
 
     ``match(left, right, params, ndisp, valid_ndisp, valid_shape=) -> (map, cues)`` runs the
     method on the halved pair; ``valid_shape`` (int32 (2,), a padded pair's own size) is
@@ -60,6 +65,34 @@ def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndis
                                                   radius=coarse.median_radius,
                                                   iterations=coarse.median_iterations)
         disparity = jnp.clip(disparity, 0, limit - 1)
+    if coarse.refit_radius > 0:
+        with scope(Stage.REFIT):
+            disparity = refit_on_cost(left, right, params, disparity, limit=limit,
+                                      valid_shape=valid_shape)
+    with scope(Stage.UPSAMPLING):
         doubled = ConfidenceCues(*(double_nearest(cue, shape=shape) for cue in cues))
         cues = doubled._replace(lr_distance=2 * doubled.lr_distance, initial=2 * doubled.initial)
     return disparity, cues
+
+
+def refit_on_cost(left: jax.Array, right: jax.Array, params: Params, disparity: jax.Array, *,
+                  limit, valid_shape=None) -> jax.Array:
+    """``disparity`` fitted again on the pair's matching cost (Eq. 5) at this resolution.
+
+    Each pixel's cost at its rounded disparity and the two beside it (one gather of the right
+    image's features per plane, :meth:`~sswjax.config.MatchingCost.at`) is averaged over the
+    ``(2r + 1)^2`` window of ``params.coarse.refit_radius`` (:func:`box_filter`: each plane
+    follows the map, as a band's planes do), then
+    :func:`~sswjax.stages.refit.refit_disparity` fits it. ``disparity``: float32 (H, W) in
+    [0, limit - 1]; ``limit`` and ``valid_shape`` as for :func:`match_coarse_to_fine`'s caller.
+    Returns float32 (H, W).
+    """
+    features = cost_features(left, right, params, valid_shape=valid_shape)
+    centres = refit_centres(disparity, limit=limit)
+    # A loop over the three planes: its body reads the pair's features from buffers, where
+    # a stack of the planes recomputed the left image's census inside every plane's fusion.
+    cost = jax.lax.map(lambda k: params.cost.at(features, jnp.clip(centres + k, 0, limit - 1)),
+                       jnp.arange(-1, 2))
+    cost = box_filter(padding_as_edge(cost, valid_shape), radius=params.coarse.refit_radius)
+    return refit_disparity(disparity, centres, *cost, limit=limit)
+

@@ -23,6 +23,7 @@ class Stage(enum.Enum):
     SELECTION = "selection"
     REFINEMENT = "refinement"
     UPSAMPLING = "upsampling"
+    REFIT = "refit"
     BAND = "band"
     SMOOTHING = "smoothing"
 

@@ -29,7 +29,7 @@ from sswjax.stages.selection import Winners, fold_right_view, fold_winners, no_w
 from sswjax.stages.quantisation import PathSums, quantise_cost, sum_planes
 
 __all__ = ["OUT_OF_RANGE_COST", "Scene", "Selected", "aggregate_slices", "aggregated_volume",
-           "cost_bound", "fold_volume", "optimised_volume", "prepare_scene", "right_view",
+           "cost_bound", "cost_features", "fold_volume", "optimised_volume", "prepare_scene", "right_view",
            "select_optimised", "streamed_winners", "superpixels"]
 
 OUT_OF_RANGE_COST = 1e4
@@ -95,6 +95,16 @@ def prepare_scene(left: jax.Array, right: jax.Array, params: Params, *, valid_sh
                   ) -> Scene:
     """Pre-processing, the cost's features and the superpixels of a pair; ``valid_shape``
     (int32 (2,), optional) the pair's own height and width when it is padded."""
+    features = cost_features(left, right, params, valid_shape=valid_shape)
+    with scope(Stage.SUPERPIXELS):
+        labels, num_segments = superpixels(left, params)
+    return Scene(left, features, labels, num_segments, valid_shape)
+
+
+def cost_features(left: jax.Array, right: jax.Array, params: Params, *, valid_shape=None
+                  ) -> MatchingFeatures:
+    """The pre-processing and the cost's features of a pair (``valid_shape`` as for
+    :func:`prepare_scene`)."""
     with scope(Stage.COST):
         preprocess = params.preprocess
         seen = (left, right) if preprocess is None else (preprocess.apply(left),
@@ -106,9 +116,7 @@ def prepare_scene(left: jax.Array, right: jax.Array, params: Params, *, valid_sh
             features = features._replace(**{
                 name: padding_as_edge(value, valid_shape)
                 for name, value in features._asdict().items() if isinstance(value, jax.Array)})
-    with scope(Stage.SUPERPIXELS):
-        labels, num_segments = superpixels(left, params)
-    return Scene(left, features, labels, num_segments, valid_shape)
+    return features
 
 
 def aggregate_slices(scene: Scene, params: Params, first, count: int) -> jax.Array:

@@ -34,10 +34,12 @@ def test_the_old_names_are_the_53_fields():
 def test_the_old_presets_are_the_new_ones(name):
     # The presets as they were before the stages the flat names never had (NEWER_SLOTS: the
     # band, the smoothing), which a flat file leaves off, and before the options it never had
-    # (NEWER_OPTIONS: the sub-pixel fit), which it leaves at their defaults.
+    # (NEWER_OPTIONS: the sub-pixel fit, the coarse map's refit), which it leaves at their
+    # defaults.
     current = preset(name).replace(**{slot: None for slot in NEWER_SLOTS})
     current = current.replace(**{slot: {field: default_of(getattr(current, slot), field)}
-                                 for slot, field in NEWER_OPTIONS})
+                                 for slot, field in NEWER_OPTIONS
+                                 if getattr(current, slot) is not None})
     reading = from_flat(OLD_PRESETS[name])
     assert Params(**reading.slots) == current
     slots = dict(current.stages())
