@@ -75,31 +75,42 @@ def main(argv=None) -> int:
     params = sswjax.preset(args.preset).replace(smoothing=None)
     grid = {text: (None if json.loads(text) is None else
                    GatedBilateralSmoothing(**json.loads(text))) for text in args.grid}
-    rows = {text: {"config": f"{args.preset} smoothing {text}"} for text in grid}
-    for set_name, (folder, scoring_name, regions) in SETS.items():
-        scoring = SCORINGS[scoring_name]
-        metrics = {text: {} for text in grid}
-        for scene in load_scenes(args.data / folder):
-            disparity = jnp.asarray(sswjax.match(scene.left, scene.right, scene.ndisp,
-                                                 params=params))
-            left = jnp.asarray(prepare_pair(scene.left, scene.right)[0])
-            for text, smoothing in grid.items():
-                smoothed = disparity if smoothing is None else _smooth(
-                    smoothing, disparity, left, scene.ndisp)
-                metrics[text][scene.name] = evaluate_disparity(
-                    jax.device_get(smoothed), scene.ground_truth, mask=scene.mask,
-                    ndisp=scene.ndisp, thresholds=(2.0, 1.0, 0.5))
-            print(set_name, scene.name, file=sys.stderr, flush=True)
-        for text in grid:
-            for region in regions:
-                for key in KEYS:
-                    values = {s: m[region][key] for s, m in metrics[text].items()
-                              if region in m}
-                    rows[text][f"{set_name} {key} {region}"] = _average(values, scoring)
-    rows = list(rows.values())
+    apply = {f"{args.preset} smoothing {text}": (
+        (lambda d, left, right, ndisp: d) if smoothing is None else
+        (lambda d, left, right, ndisp, s=smoothing: _smooth(s, d, left, ndisp)))
+        for text, smoothing in grid.items()}
+    rows = grid_rows(args.data, params, apply)
     write_report(args.output, "smoothing", _table(rows), rows, list(rows[0]))
     write_held_out(args.output, rows)
     return 0
+
+
+def grid_rows(data: Path, params, apply: dict) -> list[dict]:
+    """The rows of a grid of last steps over the three sets (this module's CSV format).
+
+    Each scene's map is computed once with ``params`` (``sswjax.match`` at exact shapes), then
+    each ``apply[config](map, left, right, ndisp) -> map`` (jnp float32 (H, W) map, the pair
+    float32 (H, W, C) in [0, 1]) is scored at bad 2.0, 1.0 and 0.5 and the average error, and
+    averaged per set by its scoring; a row per config, ``config`` its first column.
+    """
+    rows = {config: {"config": config} for config in apply}
+    for set_name, (folder, scoring_name, regions) in SETS.items():
+        metrics = {config: {} for config in apply}
+        for scene in load_scenes(data / folder):
+            disparity = jnp.asarray(sswjax.match(scene.left, scene.right, scene.ndisp,
+                                                 params=params))
+            left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
+            for config, last in apply.items():
+                metrics[config][scene.name] = evaluate_disparity(
+                    jax.device_get(last(disparity, left, right, scene.ndisp)),
+                    scene.ground_truth, mask=scene.mask, ndisp=scene.ndisp,
+                    thresholds=(2.0, 1.0, 0.5))
+            print(set_name, scene.name, file=sys.stderr, flush=True)
+        for config in apply:
+            rows[config].update({f"{set_name} {key} {region}": _average(
+                {s: m[region][key] for s, m in metrics[config].items() if region in m},
+                SCORINGS[scoring_name]) for region in regions for key in KEYS})
+    return list(rows.values())
 
 
 def write_held_out(output: Path, rows: list[dict]) -> None:
