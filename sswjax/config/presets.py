@@ -13,7 +13,9 @@ and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``); ``accurate`` runs each
 then a column of the window, ``fast`` three such passes (the same errors within 0.05 at bad
 2.0, 2-5x less time in the stage).
 ``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
-(``benchmarks/band.py``, ``docs/band.md``).
+(``benchmarks/band.py``, ``docs/band.md``). ``fast`` fits its doubled map again on the
+full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
+three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``).
 """
 
 from __future__ import annotations
@@ -64,7 +66,9 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 # every set (benchmarks/smoothing.py, docs/precision.md); balanced takes it by the same rule
 # (docs/band.md, "The separable smoothing in balanced"); finest keeps the square.
 _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True))
-_FAST = _SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1),
+# fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
+# 0.5 on the three sets, for about a fifth more time (docs/precision.md).
+_FAST = _SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1, refit_radius=2),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
 
 PRESETS: dict[str, Preset] = {
@@ -76,8 +80,9 @@ PRESETS: dict[str, Preset] = {
                                   "smoothed along its surfaces"),
     "fast": Preset(_FAST,
                    "the same method on the pair halved (three side-window passes), the map "
-                   "doubled back guided by the left image (coarse-to-fine): about 5x faster, "
-                   "less precise below 2 pixels"),
+                   "doubled back guided by the left image and fitted again on the "
+                   "full-resolution cost (coarse-to-fine): about 3x faster, less precise "
+                   "below 2 pixels"),
     "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1),
                                  band=DisparityBand(width=7)),
                        "accurate on the pair halved, then again at full resolution over 7 "

@@ -62,6 +62,7 @@ def test_a_change_by_flat_names_keeps_the_newer_options():
     assert changed.selection.fit == "equiangular" and changed.checks is None
     assert changed.optimizer.p1 == pytest.approx(0.3)
     assert Params().replace(subpixel=False).selection.fit == "parabola"
+    assert preset("fast").replace(sgm_p1=0.3).coarse.refit_radius == 2
     # the flat form leaves them out, whatever they are
     slots = dict(accurate.stages())
     for slot in NEWER_SLOTS:
