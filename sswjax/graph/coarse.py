@@ -95,4 +95,3 @@ def refit_on_cost(left: jax.Array, right: jax.Array, params: Params, disparity: 
                        jnp.arange(-1, 2))
     cost = box_filter(padding_as_edge(cost, valid_shape), radius=params.coarse.refit_radius)
     return refit_disparity(disparity, centres, *cost, limit=limit)
-

@@ -29,8 +29,8 @@ from sswjax.stages.selection import Winners, fold_right_view, fold_winners, no_w
 from sswjax.stages.quantisation import PathSums, quantise_cost, sum_planes
 
 __all__ = ["OUT_OF_RANGE_COST", "Scene", "Selected", "aggregate_slices", "aggregated_volume",
-           "cost_bound", "cost_features", "fold_volume", "optimised_volume", "prepare_scene", "right_view",
-           "select_optimised", "streamed_winners", "superpixels"]
+           "cost_bound", "cost_features", "fold_volume", "optimised_volume", "prepare_scene",
+           "right_view", "select_optimised", "streamed_winners", "superpixels"]
 
 OUT_OF_RANGE_COST = 1e4
 """Cost of the disparities beyond a traced range, as the optimiser sees them: high but finite
