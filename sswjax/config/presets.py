@@ -15,7 +15,9 @@ then a column of the window, ``fast`` three such passes (the same errors within 
 ``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
 (``benchmarks/band.py``, ``docs/band.md``). ``fast`` fits its doubled map again on the
 full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
-three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``).
+three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``),
+and on the halved pair runs ``accurate``'s one side-window pass and penalties, chosen with the
+refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``).
 """
 
 from __future__ import annotations
@@ -67,8 +69,13 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 # (docs/band.md, "The separable smoothing in balanced"); finest keeps the square.
 _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True))
 # fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
-# 0.5 on the three sets, for about a fifth more time (docs/precision.md).
-_FAST = _SEMI_GLOBAL.replace(coarse=CoarseToFine(levels=1, refit_radius=2),
+# 0.5 on the three sets, for about a fifth more time (docs/precision.md). With the refit, its
+# halved pair takes accurate's one side-window pass and penalties instead of three passes at
+# P1 0.12, P2 0.8: held out, better in every fold at bad 2.0 and at 2.0, 1.0 and 0.5, and
+# 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
+_FAST = _SEMI_GLOBAL.replace(aggregation=SideWindowAggregation(iterations=1),
+                             optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
+                             coarse=CoarseToFine(levels=1, refit_radius=2),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
 
 PRESETS: dict[str, Preset] = {
@@ -79,7 +86,7 @@ PRESETS: dict[str, Preset] = {
                                   "occlusion tests, intensity-weighted vote fill, the map "
                                   "smoothed along its surfaces"),
     "fast": Preset(_FAST,
-                   "the same method on the pair halved (three side-window passes), the map "
+                   "the same method on the pair halved (one side-window pass), the map "
                    "doubled back guided by the left image and fitted again on the "
                    "full-resolution cost (coarse-to-fine): about 3x faster, less precise "
                    "below 2 pixels"),
