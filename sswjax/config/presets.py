@@ -88,7 +88,7 @@ PRESETS: dict[str, Preset] = {
     "fast": Preset(_FAST,
                    "the same method on the pair halved (one side-window pass), the map "
                    "doubled back guided by the left image and fitted again on the "
-                   "full-resolution cost (coarse-to-fine): about 3x faster, less precise "
+                   "full-resolution cost (coarse-to-fine): about 3-4x faster, less precise "
                    "below 2 pixels"),
     "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1),
                                  band=DisparityBand(width=7)),
