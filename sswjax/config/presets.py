@@ -71,8 +71,8 @@ _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=Tru
 # fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
 # 0.5 on the three sets, for about a fifth more time (docs/precision.md). With the refit, its
 # halved pair takes accurate's one side-window pass and penalties instead of three passes at
-# P1 0.12, P2 0.8: held out, better in every fold at bad 2.0 and at 2.0, 1.0 and 0.5, and
-# 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
+# P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0 and over 2.0, 1.0
+# and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
 _FAST = _SEMI_GLOBAL.replace(aggregation=SideWindowAggregation(iterations=1),
                              optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
                              coarse=CoarseToFine(levels=1, refit_radius=2),
