@@ -58,9 +58,11 @@ _SEMI_GLOBAL = _PAPER.replace(
 )
 # accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
 # three passes, 15 x 15 and the left-band fill; fast keeps those.
+_ONE_PASS = SideWindowAggregation(iterations=1)
+_ACCURATE_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15)
 _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
-    aggregation=SideWindowAggregation(iterations=1),
-    optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
+    aggregation=_ONE_PASS,
+    optimizer=_ACCURATE_PATHS,
     fill=VoteFill(median_radius=9, median="separable", band_fit=15),
 )
 # The smoothing of accurate and fast as a row then a column of its window (3.5x fewer weights
@@ -73,8 +75,7 @@ _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=Tru
 # halved pair takes accurate's one side-window pass and penalties instead of three passes at
 # P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0 and over 2.0, 1.0
 # and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
-_FAST = _SEMI_GLOBAL.replace(aggregation=SideWindowAggregation(iterations=1),
-                             optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15),
+_FAST = _SEMI_GLOBAL.replace(aggregation=_ONE_PASS, optimizer=_ACCURATE_PATHS,
                              coarse=CoarseToFine(levels=1, refit_radius=2),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
 
