@@ -111,7 +111,9 @@ def bench_scene(scene, params, repeats, pandora=False):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path)
+    parser.add_argument("--data", type=Path,
+                        help="MiddEval3 (or its split folder), or the folder holding it as "
+                             "the other benchmarks take it (../shared/data)")
     parser.add_argument("--scenes", nargs="+")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--params", type=Path, help="parameters JSON (default: Params())")
@@ -123,7 +125,10 @@ def main() -> None:
     args = parser.parse_args()
     params = sswjax.Params() if args.params is None else sswjax.load_params(args.params)
     params = sswjax.preset(args.preset) if args.preset else params
-    scenes = load_scenes(find_data_root(data=args.data), scenes=args.scenes)
+    root = find_data_root(data=args.data)
+    if (root / "MiddEval3").is_dir():  # the data sets' folder, as front.py and band.py take it
+        root = root / "MiddEval3"
+    scenes = load_scenes(root, scenes=args.scenes)
     rows = []
     if args.pandora:  # its first call imports and registers plugins: keep that out of the timings
         from sswjax.evaluation.peers import pandora_disparity
