@@ -16,8 +16,8 @@ then a column of the window, ``fast`` three such passes (the same errors within 
 (``benchmarks/band.py``, ``docs/band.md``). ``fast`` fits its doubled map again on the
 full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
 three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``),
-and on the halved pair runs ``accurate``'s one side-window pass and penalties, chosen with the
-refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``).
+and on the halved pair runs ``accurate``'s one side-window pass and penalties and a 7 x 7 fill
+median, chosen with the refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``).
 """
 
 from __future__ import annotations
@@ -50,14 +50,16 @@ _SEMI_GLOBAL = _PAPER.replace(
     segments=None,
     optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.12, p2=0.8),
     checks=_OCCLUSION_CHECKS,
-    fill=LeftBandFill(median_radius=7, median="separable", band_fit=15),
+    # fast's fill on its halved pair: a 7 x 7 separable median, chosen with its refit by the
+    # held-out rule over 1 .. 6 (docs/speed.md, "fast's fill on its halved pair").
+    fill=LeftBandFill(median_radius=3, median="separable", band_fit=15),
     smoothing=_SMOOTHING,
     # Two lines instead of Eq. 8's parabola: less pixel locking on the semi-global sums, chosen
     # held out on the three sets for each preset (docs/precision.md, docs/paper-parts.md).
     selection=WinnerTakesAll(fit="equiangular"),
 )
-# accurate: one side-window pass, a 19 x 19 separable fill median and the vote fill instead of
-# three passes, 15 x 15 and the left-band fill; fast keeps those.
+# accurate: one side-window pass, the vote fill with a 19 x 19 separable median instead of
+# three passes and the left-band fill; fast takes the pass and the penalties.
 _ONE_PASS = SideWindowAggregation(iterations=1)
 _ACCURATE_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15)
 _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(

@@ -19,10 +19,10 @@ _ACCURATE = {**_SGM, "aggregation_iterations": 1, "fill_radius": 9, "fill": "vot
 OLD_PRESETS = {
     "paper": {},
     "accurate": _ACCURATE,
-    # fast took accurate's side-window pass and penalties after the nesting (2026-12-05); the
-    # flat names write them as they would have then
+    # fast took accurate's side-window pass and penalties after the nesting (2026-12-05) and a
+    # 7 x 7 fill median (2026-12-06); the flat names write them as they would have then
     "fast": {**_SGM, "coarse_levels": 1, "aggregation_iterations": 1, "sgm_p1": 0.2,
-             "sgm_p2": 1.15},
+             "sgm_p2": 1.15, "fill_radius": 3},
     "finest": {**_ACCURATE, "aggregation_iterations": 2, "fill": "wmedian", "sgm_paths": 8,
                "sgm_p1": 0.05, "sgm_p2": 0.8},
 }

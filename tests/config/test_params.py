@@ -68,7 +68,7 @@ def test_replace_takes_the_old_flat_names():
     # a slot given a string is the old switch: the options the old names shared are kept
     fast = preset("fast")
     vote = fast.replace(fill="vote")
-    assert vote.fill == VoteFill(median_radius=7, median="separable", band_fit=15)
+    assert vote.fill == VoteFill(median_radius=3, median="separable", band_fit=15)
     assert Params().replace(optimizer="sgm", sgm_p2=1.0).optimizer == SemiGlobal(p2=1.0)
     assert Params().replace(n_segments=0).segments is None
     # an option of a stage the parameters do not use is refused (it used to be ignored)
