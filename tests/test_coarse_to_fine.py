@@ -79,7 +79,7 @@ def test_fast_on_motorcycle_stays_within_its_measured_error():
     # side-window passes at P1 0.12, P2 0.8 on the halved pair, fast before 2026-12-05;
     # `accurate` 6.2 %)
     assert (error > 2.0).mean() <= 0.095, (error > 2.0).mean()
-    # bad 0.5 = 18.5 % (18.9 % with the 15 x 15 median), 26.5 % without the refit
+    # bad 0.5 = 18.5 % (18.9 % with the 15 x 15 median; 26.5 % with it and without the refit)
     assert (error > 0.5).mean() <= 0.22, (error > 0.5).mean()
 
 

@@ -51,7 +51,7 @@ _SEMI_GLOBAL = _PAPER.replace(
     optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.12, p2=0.8),
     checks=_OCCLUSION_CHECKS,
     # fast's fill on its halved pair: a 7 x 7 separable median, chosen with its refit by the
-    # held-out rule over 1 .. 6 (docs/speed.md, "fast's fill on its halved pair").
+    # held-out rule over radii 1 .. 7 (docs/speed.md, "fast's fill on its halved pair").
     fill=LeftBandFill(median_radius=3, median="separable", band_fit=15),
     smoothing=_SMOOTHING,
     # Two lines instead of Eq. 8's parabola: less pixel locking on the semi-global sums, chosen
