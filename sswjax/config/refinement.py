@@ -74,11 +74,14 @@ class GatedBilateralSmoothing(Part):
     separable: bool = option(False, static=True, help="a row then a column of the window per "
                              "pass instead of the square: 3.5x fewer weights at radius 3, an "
                              "approximation")
+    tilted: bool = option(False, static=True, help="measure the gate from the map's local slope "
+                          "through the pixel, not from its own disparity: a steep surface keeps "
+                          "its far neighbours (the trilateral filter's tilt)")
 
     def smooth(self, disparity, guide, limit):
         """float32 (H, W) map and (H, W, C) left image -> the smoothed map in [0, limit - 1]."""
         disparity = gated_bilateral_smoothing(disparity, guide, radius=self.radius, gate=self.gate,
                                               colour_scale=self.colour_scale,
                                               iterations=self.iterations,
-                                              separable=self.separable)
+                                              separable=self.separable, tilted=self.tilted)
         return jnp.clip(disparity, 0, limit - 1)
