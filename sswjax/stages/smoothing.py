@@ -203,11 +203,11 @@ def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets, tilted
     height, width = disparity.shape
     disparities = edge_pad(disparity, radius)
 
-    def shifted(dy, dx):          # the map at offset (dy, dx) of each pixel
-        return disparities[radius + dy:radius + dy + height, radius + dx:radius + dx + width]
+    def window(plane, dy, dx):    # the (H, W) window at offset (dy, dx) of a padded plane
+        return plane[..., radius + dy:radius + dy + height, radius + dx:radius + dx + width]
     if tilted:
-        slope_y = _slope(lambda k: shifted(k, 0), disparity, span=radius, gate=gate)
-        slope_x = _slope(lambda k: shifted(0, k), disparity, span=radius, gate=gate)
+        slope_y = _slope(lambda k: window(disparities, k, 0), disparity, span=radius, gate=gate)
+        slope_x = _slope(lambda k: window(disparities, 0, k), disparity, span=radius, gate=gate)
     # Channels first, one plane each: a sum over a trailing channel axis ran 15x slower on XLA
     # CPU (as in stages.cost).
     planes = jnp.moveaxis(guide, -1, 0)
@@ -217,9 +217,8 @@ def _gated_mean(disparity, guide, *, radius, gate, colour_scale, offsets, tilted
     weights = jnp.zeros_like(disparity)
     # One shifted window per offset: elementwise passes that XLA fuses into one loop.
     for dy, dx in offsets:
-        rows, cols = slice(radius + dy, radius + dy + height), slice(radius + dx, radius + dx + width)
-        near = disparities[rows, cols]
-        difference = sum(jnp.abs(padded[c, rows, cols] - planes[c])
+        near = window(disparities, dy, dx)
+        difference = sum(jnp.abs(window(padded[c], dy, dx) - planes[c])
                          for c in range(planes.shape[0]))
         expected = disparity + dy * slope_y + dx * slope_x if tilted else disparity
         weight = jnp.where(jnp.abs(near - expected) < gate, jnp.exp(difference * scale), 0.0)
