@@ -77,7 +77,7 @@ def test_fast_on_motorcycle_stays_within_its_measured_error():
     # measured: bad 2.0 = 7.1 %, with the smoothing's gate tilted or not (7.5 % with a 15 x 15
     # fill median on the halved pair, fast before 2026-12-06; 7.6 % without the refit of the
     # doubled map; 7.7 % with three side-window passes at P1 0.12, P2 0.8 on the halved pair,
-    # fast before 2026-12-05; `accurate` 5.4 % on 2026-12-06)
+    # fast before 2026-12-05; `accurate` 5.4 % on 2026-12-06, with its P1 0.35 and P2 2.4 too)
     assert (error > 2.0).mean() <= 0.095, (error > 2.0).mean()
     # bad 0.5 = 18.6 % (18.5 % with the untilted gate, 18.9 % with the 15 x 15 median; 26.5 %
     # with it and without the refit)

@@ -100,7 +100,7 @@ def test_resume_refuses_other_settings_and_keeps_only_its_own_maps(folders, tmp_
     for extra, changed in [(["--ndisp", 16], "ndisp 16 (was 8)"),
                            (["--ndisp", 8, "--preset", "fast"], "params.coarse {...} (was null)"),
                            (["--ndisp", 8, "--set", "optimizer.p2=1.3"],
-                            "params.optimizer.p2 1.3 (was 1.15)"),
+                            "params.optimizer.p2 1.3 (was 2.4)"),
                            (["--ndisp", 8, "--bucket"], "buckets [256, 96] (was null)")]:
         code, _, stderr = run_cli(["match", left, right, "-o", out, "--resume", *extra])
         assert code == 2 and stderr.count("\n") == 1, stderr

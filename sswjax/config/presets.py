@@ -17,8 +17,11 @@ then a column of the window, ``fast`` three such passes (the same errors within 
 (``benchmarks/band.py``, ``docs/band.md``). ``fast`` fits its doubled map again on the
 full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
 three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``),
-and on the halved pair runs ``accurate``'s one side-window pass and penalties and a 7 x 7 fill
-median, chosen with the refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``).
+and on the halved pair runs ``accurate``'s one side-window pass, the penalties ``accurate``
+had until 2026-12-06 (P1 0.2, P2 1.15, as ``balanced``) and a 7 x 7 fill median, chosen with
+the refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``). ``accurate``'s own
+penalties (P1 0.35, P2 2.4) were gridded again on the finished pipeline; ``fast`` and
+``balanced`` keep theirs by the rule (``docs/beyond-the-paper.md``).
 """
 
 from __future__ import annotations
@@ -63,9 +66,15 @@ _SEMI_GLOBAL = _PAPER.replace(
     selection=WinnerTakesAll(fit="equiangular"),
 )
 # accurate: one side-window pass, the vote fill with a 19 x 19 separable median instead of
-# three passes and the left-band fill; fast takes the pass and the penalties.
+# three passes and the left-band fill; fast takes the pass.
 _ONE_PASS = SideWindowAggregation(iterations=1)
-_ACCURATE_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15)
+# The penalties of fast's halved pair and of balanced: accurate's until 2026-12-06, kept by the
+# held-out rule over 2.0, 1.0 and 0.5 against accurate's new ones (docs/beyond-the-paper.md,
+# "P1 and P2 on the finished pipeline").
+_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15)
+# accurate's penalties, gridded again after the smoothing, its tilt and the vote fill: chosen
+# by the held-out rule on bad 2.0 and over 2.0, 1.0 and 0.5 (docs/beyond-the-paper.md).
+_ACCURATE_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.35, p2=2.4)
 _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
     aggregation=_ONE_PASS,
     optimizer=_ACCURATE_PATHS,
@@ -78,10 +87,10 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True))
 # fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
 # 0.5 on the three sets, for about a fifth more time (docs/precision.md). With the refit, its
-# halved pair takes accurate's one side-window pass and penalties instead of three passes at
-# P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0 and over 2.0, 1.0
+# halved pair takes accurate's one side-window pass and its penalties of then (_PATHS) instead
+# of three passes at P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0 and over 2.0, 1.0
 # and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
-_FAST = _SEMI_GLOBAL.replace(aggregation=_ONE_PASS, optimizer=_ACCURATE_PATHS,
+_FAST = _SEMI_GLOBAL.replace(aggregation=_ONE_PASS, optimizer=_PATHS,
                              coarse=CoarseToFine(levels=1, refit_radius=2),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
 
@@ -97,7 +106,7 @@ PRESETS: dict[str, Preset] = {
                    "doubled back guided by the left image and fitted again on the "
                    "full-resolution cost (coarse-to-fine): about 3-4x faster, less precise "
                    "below 2 pixels"),
-    "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1),
+    "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1), optimizer=_PATHS,
                                  band=DisparityBand(width=7)),
                        "accurate on the pair halved, then again at full resolution over 7 "
                        "disparities around each pixel's doubled disparity (the band): about 2x "

@@ -15,7 +15,7 @@ _SGM = {"optimizer": "sgm", "sgm_paths": 4, "sgm_p1": 0.12, "sgm_p2": 0.8, "n_se
         "fill_radius": 7, "fill_median": "separable", "fill": "left-band", "sgm_dtype": "uint8",
         **_OCCLUSIONS}
 _ACCURATE = {**_SGM, "aggregation_iterations": 1, "fill_radius": 9, "fill": "vote",
-             "sgm_p1": 0.2, "sgm_p2": 1.15}
+             "sgm_p1": 0.35, "sgm_p2": 2.4}
 OLD_PRESETS = {
     "paper": {},
     "accurate": _ACCURATE,

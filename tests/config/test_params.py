@@ -82,7 +82,7 @@ def test_to_dict_is_nested_per_stage():
     data = preset("accurate").to_dict()
     assert list(data) == list(SLOTS)
     assert data["segments"] is None and data["coarse"] is None
-    assert data["optimizer"] == {"kind": "sgm", "paths": 4, "dtype": "uint8", "p1": 0.2, "p2": 1.15,
+    assert data["optimizer"] == {"kind": "sgm", "paths": 4, "dtype": "uint8", "p1": 0.35, "p2": 2.4,
                                  "sigma": 0.05, "segment_factor": 1.0}
     assert "kind" not in data["cost"]  # one part only: no kind to name
     assert data["fill"]["kind"] == "vote" and data["fill"]["band_fit"] == 15
