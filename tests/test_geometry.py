@@ -258,10 +258,12 @@ def test_cli_depth_png(small_pair, tmp_path, run_cli):
                         np.round(depth * 1000) / 1000, np.inf).astype(np.float32)
     assert np.isfinite(expected).mean() > 0.5
     # One step of the scale apart at most: a depth at a half step may round either way in the
-    # writer's float32 and this float64 reference.
+    # writer's float32 and this float64 reference. Compared in steps: two float32 depths one
+    # step apart near 16 m differ by 0.0010014, more than a step plus 1e-6.
     np.testing.assert_array_equal(np.isfinite(written), np.isfinite(expected))
     finite = np.isfinite(expected)
-    np.testing.assert_allclose(written[finite], expected[finite], rtol=0, atol=1e-3 + 1e-6)
+    steps = [np.round(values[finite].astype(np.float64) * 1000) for values in (written, expected)]
+    assert np.abs(steps[0] - steps[1]).max() <= 1
     assert (written[finite] == expected[finite]).mean() > 0.99
 
 
