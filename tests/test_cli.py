@@ -325,7 +325,7 @@ def test_set_changes_a_stage_and_options(run_cli):
 
 
 @pytest.mark.parametrize("setting, message", [
-    ("bogus=1", "--set bogus=1: unknown parameter 'bogus': name a stage (preprocess, cost,"),
+    ("bogus=1", "--set bogus=1: unknown parameter 'bogus': name a stage (alignment, preprocess,"),
     ("fill=nope", "--set fill=nope: unknown fill kind 'nope'; choose from background,"),
     ("fill.nope=1", "--set fill.nope=1: fill 'vote' has no option 'nope'"),
     ("nostage.p2=1", "--set nostage.p2=1: unknown parameter 'nostage.p2'"),

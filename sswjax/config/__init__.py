@@ -4,6 +4,7 @@
 ``fields``         ``option(...)``: an option static or traced, its bounds, choices and search
                    transform; ``stage_config`` makes a class a frozen dataclass and a pytree
 ``parts``          the slots (the stages, in pipeline order) and the registry of their parts
+``alignment``      the rectification's residual vertical offset, measured and taken out
 ``cost``           pre-processing, the matching cost (Eq. 1-5), the superpixels (Eq. 6)
 ``aggregation``    the segment-side-window aggregation (Eq. 7) and the baseline aggregators
 ``optimizer``      semi-global optimisation (full and half resolution)
@@ -22,6 +23,7 @@
 from sswjax.config.aggregation import (Aggregator, BilateralAggregation, BoxAggregation,
                                        GuidedAggregation, IteratedGuidedAggregation,
                                        MedianAggregation, SideWindowAggregation)
+from sswjax.config.alignment import VerticalAlignment
 from sswjax.config.band import DisparityBand
 from sswjax.config.cost import LocalContrast, MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, Option, option, stage_config
@@ -42,7 +44,7 @@ __all__ = [
     "IteratedGuidedAggregation", "LeftBandFill", "LeftRightCheck", "LocalContrast",
     "MatchingCost", "MedianAggregation", "Optimizer", "Option", "PRESETS", "Params", "Part",
     "PlaneFill", "Preprocessor", "SLOTS", "SemiGlobal", "SideWindowAggregation",
-    "SideWindowMedian", "Slic", "VoteFill", "WeightedMedianFill", "WinnerTakesAll",
+    "SideWindowMedian", "Slic", "VerticalAlignment", "VoteFill", "WeightedMedianFill", "WinnerTakesAll",
     "check_params", "default_params", "kinds", "load_params", "option", "params_from_dict",
     "preset", "read_params_file", "register", "save_params", "stage_config",
 ]

@@ -29,7 +29,7 @@ __all__ = ["DYNAMIC_DEFAULTS", "EXECUTION_DEFAULTS", "FLAT_DEFAULTS", "NEWER_OPT
            "NEWER_SLOTS", "STATIC_DEFAULTS", "FlatReading", "from_flat", "old_names", "to_flat",
            "translate", "unused_error"]
 
-NEWER_SLOTS = ("band", "smoothing")
+NEWER_SLOTS = ("alignment", "band", "smoothing")
 """Stages added after the flat names: a flat file describes a configuration without them (they
 are off), and a change by flat names keeps them as they are."""
 

@@ -17,6 +17,7 @@ import dataclasses
 from collections.abc import Iterator, Mapping
 
 from sswjax.config.aggregation import Aggregator, SideWindowAggregation
+from sswjax.config.alignment import VerticalAlignment
 from sswjax.config.band import DisparityBand
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
@@ -51,6 +52,7 @@ class Params:
     'vote'
     """
 
+    alignment: VerticalAlignment | None = None
     preprocess: Preprocessor | None = None
     cost: MatchingCost = dataclasses.field(default_factory=MatchingCost)
     segments: Slic | None = dataclasses.field(default_factory=Slic)

@@ -43,6 +43,8 @@ class Slot(NamedTuple):
 
 
 SLOTS: dict[str, Slot] = {slot.name: slot for slot in (
+    Slot("alignment", "the right image's rows moved onto the left's (the rectification's "
+         "residual vertical offset, measured on a first pass)", True, False),
     Slot("preprocess", "what the matching cost sees of the images", True, True),
     Slot("cost", "the matching cost of each pixel and disparity (Eq. 1-5)", False, False),
     Slot("segments", "the superpixels the segment-aware stages share (Eq. 6)", True, False),

@@ -23,7 +23,27 @@ from sswjax.stages.pyramid import halve_image
 from sswjax.stages.refit import refit_centres, refit_disparity
 from sswjax.stages.upsampling import double_nearest, upsample_disparity
 
-__all__ = ["match_coarse_to_fine", "refit_on_cost"]
+__all__ = ["halved_pair", "match_coarse_to_fine", "refit_on_cost"]
+
+
+def halved_pair(left: jax.Array, right: jax.Array, ndisp: int, valid_ndisp, *, valid_shape=None):
+    """The pair halved (:func:`~sswjax.stages.pyramid.halve_image`) and what the method on it
+    takes: ``(small_left, small_right, ndisp, valid_ndisp, valid_shape)`` of the halved pair.
+
+    Fine disparities ``0 .. ndisp - 1`` are coarse ``0 .. (ndisp - 1) / 2``: ``ndisp // 2 + 1``
+    of them, within the halved width. ``valid_shape`` (int32 (2,), a padded pair's own size)
+    is halved up, a coarse pixel counting as the pair's when any of its fine pixels does, and
+    the halved padding holds the halved pair's edge again.
+    """
+    small_left, small_right = halve_image(left), halve_image(right)
+    small_shape = None if valid_shape is None else (valid_shape + 1) // 2
+    if small_shape is not None:
+        small_left, small_right = (
+            jnp.moveaxis(padding_as_edge(jnp.moveaxis(image, -1, 0), small_shape), 0, -1)
+            for image in (small_left, small_right))
+    small_ndisp = min(ndisp // 2 + 1, small_left.shape[1] - 1)
+    small_limit = None if valid_ndisp is None else jnp.minimum(valid_ndisp // 2 + 1, small_ndisp)
+    return small_left, small_right, small_ndisp, small_limit, small_shape
 
 
 def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndisp: int,
@@ -35,23 +55,13 @@ def match_coarse_to_fine(left: jax.Array, right: jax.Array, params: Params, ndis
     and, with ``refit_radius``, the fit on the full-resolution cost (:func:`refit_on_cost`).
 
     ``match(left, right, params, ndisp, valid_ndisp, valid_shape=) -> (map, cues)`` runs the
-    method on the halved pair; ``valid_shape`` (int32 (2,), a padded pair's own size) is
-    halved up, a coarse pixel counting as the pair's when any of its fine pixels does. The confidence cues are the coarse ones, each on the fine pixels its coarse
-    pixel covers (disparities and distances doubled).
+    method on the halved pair (:func:`halved_pair`). The confidence cues are the coarse ones,
+    each on the fine pixels its coarse pixel covers (disparities and distances doubled).
     """
     coarse = params.coarse
     limit = ndisp if valid_ndisp is None else valid_ndisp
-    small_left, small_right = halve_image(left), halve_image(right)
-    coarse_shape = None if valid_shape is None else (valid_shape + 1) // 2
-    if coarse_shape is not None:
-        # A bucket's padding halved is not the halved pair's edge: copied again from it.
-        small_left, small_right = (
-            jnp.moveaxis(padding_as_edge(jnp.moveaxis(image, -1, 0), coarse_shape), 0, -1)
-            for image in (small_left, small_right))
-    # Fine disparities 0 .. ndisp - 1 are coarse 0 .. (ndisp - 1) / 2: ndisp // 2 + 1 of them,
-    # within the halved width.
-    coarse_ndisp = min(ndisp // 2 + 1, small_left.shape[1] - 1)
-    coarse_limit = None if valid_ndisp is None else jnp.minimum(valid_ndisp // 2 + 1, coarse_ndisp)
+    small_left, small_right, coarse_ndisp, coarse_limit, coarse_shape = halved_pair(
+        left, right, ndisp, valid_ndisp, valid_shape=valid_shape)
     inner = params.replace(coarse=coarse.replace(levels=coarse.levels - 1)
                            if coarse.levels > 1 else None)
     disparity, cues, _ = match(small_left, small_right, inner, coarse_ndisp, coarse_limit,

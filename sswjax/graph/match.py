@@ -17,6 +17,7 @@ import jax
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
 from sswjax.config import Params
+from sswjax.graph.alignment import align_right
 from sswjax.graph.band import match_band
 from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
@@ -74,6 +75,8 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
     (:class:`~sswjax.stages.paths.Seeds`), the paths' states for the neighbouring windows
     (else None).
 
+    With ``params.alignment``, a first pass on the pair halved measures the right image's
+    vertical offset and the method runs on the pair aligned (:mod:`sswjax.graph.alignment`).
     Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
     optimiser the volume is stored, optimised and folded; without one each block is folded
     as soon as it is aggregated. With a band, the method then runs again over a few
@@ -85,6 +88,12 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
         check_carried(params)
     limit = ndisp if valid_ndisp is None else valid_ndisp
     scene = carried = None
+    if params.alignment is not None:
+        # The first pass, the offset measured, the right image moved: then the method.
+        right, _ = align_right(left, right, params, ndisp, valid_ndisp,
+                               functools.partial(match_maps, chunk=chunk),
+                               valid_shape=valid_shape)
+        params = params.replace(alignment=None)
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
         # The smoothing acts once, on the full-resolution map; the band at every level that
@@ -120,16 +129,18 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
 def carries_paths(params: Params) -> bool:
     """Whether windows of ``params``' method can carry the semi-global paths along the rows
     from one to the next (:mod:`sswjax.stages.paths`): a full-resolution volume (no
-    coarse-to-fine, no band) optimised by an optimiser that ``carries_paths``."""
-    return (params.coarse is None and params.band is None and params.optimizer is not None
-            and params.optimizer.carries_paths)
+    coarse-to-fine, no band, no alignment: its first pass needs the whole pair) optimised by
+    an optimiser that ``carries_paths``."""
+    return (params.alignment is None and params.coarse is None and params.band is None
+            and params.optimizer is not None and params.optimizer.carries_paths)
 
 
 def check_carried(params: Params) -> None:
     """Raise ``ValueError`` (one line) unless :func:`carries_paths`."""
     if not carries_paths(params):
         raise ValueError("seeds carry the semi-global paths of a full-resolution volume: this "
-                         "method has no such optimiser, or runs coarse-to-fine or in a band")
+                         "method has no such optimiser, or runs coarse-to-fine, in a band or "
+                         "after a vertical alignment")
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))

@@ -16,6 +16,7 @@ __all__ = ["Stage", "scope"]
 class Stage(enum.Enum):
     """A named scope of the compiled graph, in the order the data flows through them."""
 
+    ALIGNMENT = "alignment"
     COST = "cost"
     SUPERPIXELS = "superpixels"
     AGGREGATION = "aggregation"

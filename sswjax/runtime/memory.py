@@ -368,10 +368,10 @@ def _bound(limit, *, share: int = 1, local: bool = True):
 
 
 def _cheapest_tiling(shape, plan, params, bound, estimate):
-    """The strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` (of the bucketed
-    shape, paths carried as the plan and method allow) first under ``bound``; None: none fits."""
+    """The first strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` under ``bound``
+    (bucketed; paths carried as plan and method allow, aligned or not); None: none fits."""
     height, width, ndisp = shape
-    carried = plan.carry_paths and carries_paths(params)
+    carried = plan.carry_paths and carries_paths(params.replace(alignment=None))
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
     for tiling in tilings_by_work(height, width, lead=ndisp, overlap=plan.strip_overlap,

@@ -21,6 +21,7 @@ import numpy as np
 
 from sswjax.config import Params
 from sswjax.graph import DEFAULT_CHUNK
+from sswjax.runtime.aligned import aligned_separately, execute_aligned
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
 from sswjax.runtime.carried import carried_strips, in_carried_strips
 from sswjax.runtime.tiles import Tiling, Window, in_tiles
@@ -202,7 +203,8 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
             plan: ExecutionPlan):
     """``graph(left, right, params=, ndisp=, chunk=[, valid_ndisp=])`` under ``plan``: padded
     to its bucket, in tiles or strips (:func:`~sswjax.runtime.tiles.in_tiles`), cropped back;
-    or by the plan's engine.
+    or by the plan's engine. A pair that is aligned (``params.alignment``) and cut into
+    windows is aligned once on the whole pair first (:mod:`sswjax.runtime.aligned`).
 
     Parameters
     ----------
@@ -218,6 +220,9 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     -------
     numpy.ndarray (H, W), or the same NamedTuple of them
     """
+    if aligned_separately(params, plan):
+        return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
+                               plan=plan)
     if plan.engine is not None:
         return plan.engine.execute(graph, left, right, params=params, ndisp=ndisp,
                                    plan=plan._replace(engine=None))

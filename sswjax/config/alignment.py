@@ -1,0 +1,64 @@
+"""Configuration of the vertical alignment: the residual vertical offset of the rectification,
+measured on a first, coarser pass and taken out of the right image before the method runs.
+
+The graph (:mod:`sswjax.graph.alignment`) reads these options; the stage functions are those of
+:mod:`sswjax.stages.alignment`.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from sswjax.config.fields import option
+from sswjax.config.parts import Part, register
+from sswjax.stages.alignment import affine_offsets, fit_offsets, shift_rows, tile_offsets
+
+__all__ = ["VerticalAlignment"]
+
+
+@register("alignment", "vertical")
+class VerticalAlignment(Part):
+    """The right image's rows moved onto the left's: an offset affine in the image coordinates,
+    measured on the matching cost at a first pass's map (the method on the pair halved
+    ``levels`` times), tile by tile over a few candidate offsets; then the method runs on the
+    aligned pair."""
+
+    levels: int = option(1, static=True, low=1, high=3, help="the first pass and the measure "
+                         "run on the pair halved this many times")
+    candidates: int = option(7, static=True, low=3, high=15, odd=True, help="vertical offsets "
+                             "tried per tile, centred on 0")
+    step: float = option(0.2, above=0, help="full-resolution pixels between the candidate "
+                         "offsets")
+    tiles: int = option(4, static=True, low=2, high=16, help="the offsets are measured on a "
+                        "grid of tiles x tiles tiles")
+
+    def first_pass(self, params):
+        """The parameters of the first pass, run on the pair halved ``levels`` times: the
+        method of ``params`` over its whole volume, without this stage, coarse-to-fine, the band
+        and the smoothing."""
+        return params.replace(alignment=None, coarse=None, band=None, smoothing=None)
+
+    def offsets(self, scale: int = 1) -> jax.Array:
+        """The candidate offsets in pixels of a level ``scale`` times coarser than the pair:
+        float32 (candidates,)."""
+        half = (self.candidates - 1) / 2
+        return (jnp.arange(self.candidates, dtype=jnp.float32) - half) * self.step / scale
+
+    def coefficients(self, costs: jax.Array, valid: jax.Array, *, scale: int = 1,
+                     size=None) -> jax.Array:
+        """The model's coefficients, in the pair's pixels, from the candidates' costs (float32
+        (K, H, W), at :meth:`offsets` ``(scale)``) where ``valid`` (bool (H, W)): float32 (3,).
+        The normalised coordinates are those of every level, so the coefficients scale as the
+        offsets do. ``size``: the pair's own (H, W) at that level within padding (int32 (2,))."""
+        tiles = tile_offsets(costs, valid, step=self.step / scale, tiles=self.tiles, size=size)
+        return fit_offsets(tiles) * scale
+
+    def apply(self, right: jax.Array, coefficients: jax.Array, *, size=None) -> jax.Array:
+        """``right`` (float32 (H, W, C)) with its rows moved by the model, each offset within
+        the candidates' span (what was measured; a plane through the tiles can reach beyond it
+        at the corners): float32 (H, W, C). ``size``: the pair's own (H, W) within padding."""
+        span = (self.candidates - 1) / 2 * self.step
+        offsets = jnp.clip(affine_offsets(coefficients, right.shape[:2], size=size), -span,
+                           span)
+        return shift_rows(right, offsets)

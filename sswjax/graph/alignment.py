@@ -1,0 +1,117 @@
+"""The vertical alignment in the graph: a first pass on the pair halved, the offset measured on
+the cost at its map at that level, the full-resolution right image moved.
+
+Array conventions: images float32 ``(H, W, C)`` in [0, 1]; maps float32 ``(H, W)`` in pixels;
+coefficients float32 ``(3,)`` (:mod:`sswjax.stages.alignment`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+
+from sswjax.config import Params
+from sswjax.graph.coarse import halved_pair
+from sswjax.graph.padding import padding_as_edge
+from sswjax.graph.scopes import Stage, scope
+from sswjax.graph.volume import cost_features
+from sswjax.stages.alignment import shift_rows
+
+__all__ = ["align_right", "alignment_coefficients", "halved_levels"]
+
+# Columns from the left edge whose cost is left out: their census window reaches past the
+# right image's edge at small disparities.
+_EDGE = 4
+
+
+def alignment_coefficients(left: jax.Array, right: jax.Array, params: Params,
+                           disparity: jax.Array, rejected: jax.Array, *, limit, scale: int = 1,
+                           valid_shape=None) -> jax.Array:
+    """The coefficients of ``params.alignment``'s offset model, measured at ``disparity``.
+
+    For each candidate offset the two images are moved apart by it (each by half) and the cost
+    of Eq. (5) of every left pixel at its rounded disparity gathered
+    (:meth:`~sswjax.config.MatchingCost.at`); the pixels the first pass's checks ``rejected``,
+    those within a few columns of the left edge or whose match falls outside the right image,
+    and a bucket's padding do not count.
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C)
+        The pair at the level of ``disparity`` (``scale`` times coarser than the pair whose
+        offset is wanted).
+    params : Params
+        With ``alignment`` set.
+    disparity : float32 (H, W)
+        The first pass's map.
+    rejected : bool (H, W)
+        Pixels whose first-pass disparity was filled in.
+    limit : int or int32 scalar
+        Disparities are ``0 .. limit - 1``.
+    scale : int
+        ``2 ** levels``: the coefficients are returned in the full pair's pixels.
+    valid_shape : int32 (2,), optional
+        The pair's own ``(H, W)`` within a bucket's padding, at this level.
+
+    Returns
+    -------
+    float32 (3,)
+    """
+    alignment = params.alignment
+    height, width = disparity.shape
+    rounded = jnp.clip(jnp.round(disparity), 0, limit - 1).astype(jnp.int32)
+    columns = jnp.arange(width)[None, :]
+    valid = ~rejected & (columns - rounded >= _EDGE) & (columns >= _EDGE)
+    if valid_shape is not None:
+        valid &= (jnp.arange(height)[:, None] < valid_shape[0]) & (columns < valid_shape[1])
+
+    def candidate_cost(offset):
+        # Each image moved by half the offset, in opposite directions: both are then read
+        # between their rows alike (the linear interpolation's blur the same on both sides,
+        # where moving the right image alone favours the offsets of whole rows).
+        half = jnp.full((height, width), offset / 2)
+        features = cost_features(shift_rows(left, -half), shift_rows(right, half), params,
+                                 valid_shape=valid_shape)
+        return params.cost.at(features, rounded)
+
+    # A loop over the candidates: one cost plane alive at a time besides the stack.
+    costs = jax.lax.map(candidate_cost, alignment.offsets(scale))
+    return alignment.coefficients(costs, valid, scale=scale, size=valid_shape)
+
+
+def halved_levels(left: jax.Array, right: jax.Array, ndisp: int, valid_ndisp, levels: int, *,
+                  valid_shape=None):
+    """:func:`~sswjax.graph.coarse.halved_pair` ``levels`` times: ``(left, right, ndisp,
+    valid_ndisp, valid_shape)`` of the pair halved so."""
+    level = (left, right, ndisp, valid_ndisp, valid_shape)
+    for _ in range(levels):
+        level = halved_pair(*level[:4], valid_shape=level[4])
+    return level
+
+
+def align_right(left: jax.Array, right: jax.Array, params: Params, ndisp: int, valid_ndisp,
+                match: Callable, *, valid_shape=None) -> tuple[jax.Array, jax.Array]:
+    """The right image with its rows moved onto the left's, and the model's coefficients.
+
+    ``match(left, right, params, ndisp, valid_ndisp, valid_shape=) -> (map, cues, carried)``
+    runs the first pass (``params.alignment.first_pass(params)``) on the pair halved
+    ``params.alignment.levels`` times; its map and the pixels its checks rejected give
+    :func:`alignment_coefficients` at that level.
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (3,))
+    """
+    alignment = params.alignment
+    small_left, small_right, small_ndisp, small_valid, small_shape = halved_levels(
+        left, right, ndisp, valid_ndisp, alignment.levels, valid_shape=valid_shape)
+    disparity, cues, _ = match(small_left, small_right, alignment.first_pass(params),
+                               small_ndisp, small_valid, valid_shape=small_shape)
+    with scope(Stage.ALIGNMENT):
+        coefficients = alignment_coefficients(
+            small_left, small_right, params, padding_as_edge(disparity, small_shape),
+            cues.lr_failed, limit=small_ndisp if small_valid is None else small_valid,
+            scale=2 ** alignment.levels, valid_shape=small_shape)
+        return alignment.apply(right, coefficients, size=valid_shape), coefficients
