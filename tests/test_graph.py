@@ -53,10 +53,21 @@ def test_constant_shift_recovered_with_default_params(pair):
     d = sswjax.match(left, right, ndisp=NDISP)
     assert d.dtype == np.float32 and d.shape == (H, W)
     inner = d[:, SHIFT + MARGIN :]
-    # The default's equiangular fit through c(6), c(7), c(8) moves the estimate by
+    # The default first aligns the rows: its first pass sees this pair halved, white noise
+    # shifted by 3.5 pixels everywhere, and measures the offset at the rounded disparity,
+    # where every pixel's cost is that of a wrong match: a spurious offset (0.2 px and a
+    # rotation's 1.4 px across the image, docs/alignment.md), which the full-resolution pass
+    # then matches through. Within 0.1 px almost everywhere all the same.
+    error = np.abs(inner - SHIFT)
+    assert (error <= 0.1).mean() >= 0.98, (error <= 0.1).mean()
+    assert error.mean() <= 0.03 and error.max() <= 0.5
+    assert abs(float(np.median(inner)) - SHIFT) <= 1e-3
+    # Without it, the equiangular fit through c(6), c(7), c(8) moves the estimate by
     # (c6 - c8) / (2 (max(c6, c8) - c7)), small but not zero where the two sides differ: a mean
     # of 0.007 px here, at most 0.18 (the parabola's (c6 - c8) / (2 (c6 + c8 - 2 c7)) is about
     # half that, and pulls a true fraction towards the integer as much).
+    inner = sswjax.match(left, right, ndisp=NDISP, params=sswjax.preset("accurate").replace(
+        alignment=None))[:, SHIFT + MARGIN :]
     error = np.abs(inner - SHIFT)
     assert (error <= 0.05).mean() >= 0.98, (error <= 0.05).mean()
     assert error.mean() <= 0.01 and error.max() <= 0.5
@@ -68,7 +79,9 @@ def test_cost_stored_as_built_equals_the_volume_quantised_after(pair, monkeypatc
     # never written); the map must be that of quantising the whole volume inside the paths,
     # with and without the out-of-range disparities of a traced range.
     left, right = map(jnp.asarray, pair)
-    params = sswjax.preset("accurate").replace(sgm_dtype="uint8")
+    # (without the alignment, whose first pass would quantise too and move the right image
+    # by the offset its map gives)
+    params = sswjax.preset("accurate").replace(sgm_dtype="uint8", alignment=None)
     run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
     stored = [run(left, right, None), run(left, right, NDISP - 3)]
     monkeypatch.setattr(SemiGlobal, "storage", lambda self, cost_bound: None)
@@ -408,7 +421,7 @@ def test_a_band_without_paths_is_the_method_without_an_optimizer(pair):
     range, after a coarse pass that keeps its paths, it is the full-range method without an
     optimizer, exactly."""
     left, right = map(jnp.asarray, pair)
-    full = sswjax.preset("accurate").replace(smoothing=None)
+    full = sswjax.preset("accurate").replace(smoothing=None, alignment=None)
     reference = np.asarray(ssw_disparity(left, right, full.replace(optimizer=None), ndisp=NDISP))
     banded = full.replace(coarse=sswjax.config.CoarseToFine(levels=1),
                           band=sswjax.config.DisparityBand(width=NDISP, paths=False))
