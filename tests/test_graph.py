@@ -1,5 +1,9 @@
 """End-to-end tests of the jitted graph and the front door: known shifts, batching, input
-handling, the occlusion tests, a real pair."""
+handling, the occlusion tests, a real pair.
+
+Tests of another mechanism than the vertical alignment run ``accurate`` with ``alignment=None``:
+its first pass would compile a second copy of the method for nothing (tests/test_alignment.py
+tests it, in the graph and in strips)."""
 
 import jax
 import jax.numpy as jnp
@@ -272,7 +276,7 @@ def layered_pair(seed: int = 1):
 
 def test_uniqueness_test_only_adds_rejections():
     left, right, truth, occluded = (jnp.asarray(a) for a in layered_pair())
-    base = sswjax.preset("accurate").replace(uniqueness_gap=0)
+    base = sswjax.preset("accurate").replace(uniqueness_gap=0, alignment=None)
     off = sswjax.ssw_outputs(left, right, base, ndisp=NDISP)
     on = sswjax.ssw_outputs(left, right, base.replace(uniqueness_gap=2), ndisp=NDISP)
     assert bool(jnp.all(on.lr_failed | ~off.lr_failed))  # a superset of the check's rejections
@@ -301,7 +305,7 @@ def test_right_view_of_a_stored_volume_is_its_argmin(chunk, limit, dtype):
 
 def test_aggregated_check_only_adds_rejections():
     left, right, _, _ = (jnp.asarray(a) for a in layered_pair())
-    base = sswjax.preset("accurate")
+    base = sswjax.preset("accurate").replace(alignment=None)
     off = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=0), ndisp=NDISP)
     on = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=1), ndisp=NDISP)
     assert bool(jnp.all(on.lr_failed | ~off.lr_failed))
@@ -390,7 +394,7 @@ def test_a_band_as_wide_as_the_range_is_the_method_without_it(pair):
     is centred on (the full-range map, or the coarse pass's); a narrow band around a right
     map still recovers the shift."""
     left, right = map(jnp.asarray, pair)
-    full = sswjax.preset("accurate").replace(smoothing=None)
+    full = sswjax.preset("accurate").replace(smoothing=None, alignment=None)
     reference = np.asarray(ssw_disparity(left, right, full, ndisp=NDISP))
     wide = sswjax.config.DisparityBand(width=NDISP)
     for base in (full, full.replace(coarse=sswjax.config.CoarseToFine(levels=1))):
@@ -410,7 +414,7 @@ def test_a_band_over_superpixel_ranges_recovers_the_shift(pair):
     accurate map still recovers the shift."""
     left, right = map(jnp.asarray, pair)
     params = sswjax.preset("accurate").replace(
-        smoothing=None, segments=sswjax.config.Slic(n_segments=12),
+        smoothing=None, alignment=None, segments=sswjax.config.Slic(n_segments=12),
         band=sswjax.config.DisparityBand(width=3, segment_range=True))
     banded = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP))
     assert np.abs(banded[:, SHIFT + MARGIN:] - SHIFT).max() <= 0.5
