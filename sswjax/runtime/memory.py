@@ -35,6 +35,10 @@ its table is in ``docs/speed-and-memory.md``. The terms:
     ``h * W * D`` more with the optimiser when the volume is aggregated whole (no blocks).
 ``band``
     1 with a band: its graph's compilation; its ``h * w * K`` adds to ``volume`` and ``sgm``.
+``alignment``
+    1 with the vertical alignment: compiling its first pass, a second copy of the method (the
+    peak with it less without, measured rather than fitted: 0.31 GB at 480 x 640 x 192, 0.30 at
+    960 x 1280 x 256, 0.36 on trainingQ's Vintage; its halved volumes do not add).
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
@@ -52,6 +56,7 @@ from sswjax.config import Params, default_params
 from sswjax.graph import carries_paths
 from sswjax.runtime.buckets import bucket_shape
 from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align, tiling_words
+from sswjax.runtime.refusal import MemoryEstimateError
 from sswjax.runtime.tiles import tilings_by_work, window_shape
 
 __all__ = ["STRIP_HEIGHTS", "MemoryEstimateError", "available_bytes", "check_memory",
@@ -61,37 +66,6 @@ __all__ = ["STRIP_HEIGHTS", "MemoryEstimateError", "available_bytes", "check_mem
 STRIP_HEIGHTS = (512, 384, 256, 192, 128, 96, 64, 48, 32, 16)
 """Strip heights (rows) that :func:`plan_for_memory` tries, besides the square tiles of
 :data:`~sswjax.runtime.tiles.TILE_SIZES`."""
-
-
-class MemoryEstimateError(MemoryError):
-    """The estimated peak memory of a call exceeds what is available (or the caller's limit).
-
-    Raised before any work, with a one-line message in the API's terms. The fields let a
-    caller say it in its own (the command line names its options).
-
-    Attributes
-    ----------
-    estimate, limit : int
-        Bytes: the estimate of the call as asked, and the bound it exceeds.
-    bound : str
-        Which bound: ``"the limit"`` (the caller's) or ``"the available memory"``.
-    shape : (int, int, int)
-        The pair's width, height and ndisp, as estimated.
-    strips : ExecutionPlan or None
-        The strips or tiles that would fit (:func:`plan_for_memory`'s choice), with their
-        estimate in :attr:`strips_estimate`; None when even the smallest do not.
-    """
-
-    def __init__(self, message: str, *, estimate: int, limit: int, bound: str = "the limit",
-                 shape=(0, 0, 0), strips: ExecutionPlan | None = None,
-                 strips_estimate: int | None = None):
-        super().__init__(message)
-        self.estimate = estimate
-        self.limit = limit
-        self.bound = bound
-        self.shape = shape
-        self.strips = strips
-        self.strips_estimate = strips_estimate
 
 
 COEFFICIENTS: dict[str, float] = {
@@ -106,6 +80,7 @@ COEFFICIENTS: dict[str, float] = {
     "sgm8": 2.592,
     "sgm_whole": 27.2,
     "band": 3.66e8,
+    "alignment": 3.6e8,
 }
 """Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-04)."""
 
@@ -165,6 +140,7 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
         "sgm_whole": matched * ndisp if sgm and whole else 0.0,
         "band": 0.0 if params.band is None else 1.0,
+        "alignment": 0.0 if params.alignment is None else 1.0,
     }
 
 
