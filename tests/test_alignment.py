@@ -49,9 +49,11 @@ def moved_pair():
 
 
 def _params(**options):
-    """``accurate`` aligned (the first pass on the pair halved once)."""
+    """``accurate`` aligned (the first pass on the pair halved once). The pair is small: its
+    tiles have 192 valid pixels at most at the level halved once, fewer than the default's floor
+    (``min_pixels`` 256), which these tests lower."""
     return sswjax.preset("accurate").replace(alignment={"kind": "vertical", "levels": 1,
-                                                        **options})
+                                                        "min_pixels": 64, **options})
 
 
 def test_the_offset_is_measured_at_the_true_map(moved_pair):

@@ -56,22 +56,18 @@ def test_constant_shift_recovered_with_default_params(pair):
     left, right = pair
     d = sswjax.match(left, right, ndisp=NDISP)
     assert d.dtype == np.float32 and d.shape == (H, W)
-    inner = d[:, SHIFT + MARGIN :]
-    # The default first aligns the rows: its first pass sees this pair halved, white noise
-    # shifted by 3.5 pixels everywhere, and measures the offset at the rounded disparity,
-    # where every pixel's cost is that of a wrong match: a spurious offset (0.2 px and a
-    # rotation's 1.4 px across the image, docs/alignment.md), which the full-resolution pass
-    # then matches through. Within 0.1 px almost everywhere all the same.
-    error = np.abs(inner - SHIFT)
-    assert (error <= 0.1).mean() >= 0.98, (error <= 0.1).mean()
-    assert error.mean() <= 0.03 and error.max() <= 0.5
-    assert abs(float(np.median(inner)) - SHIFT) <= 1e-3
-    # Without it, the equiangular fit through c(6), c(7), c(8) moves the estimate by
+    # The default first aligns the rows, measured on a first pass over the pair halved: here
+    # its tiles have 72 valid pixels at most, below the floor of 256 (on this white noise, which
+    # the halved pass cannot match, such tiles gave spurious offsets of up to a pixel at the
+    # corners: docs/alignment.md, "Limits"), so nothing is moved.
+    unaligned = sswjax.match(left, right, ndisp=NDISP, params=sswjax.preset("accurate").replace(
+        alignment=None))
+    np.testing.assert_array_equal(d, unaligned)
+    # The equiangular fit through c(6), c(7), c(8) moves the estimate by
     # (c6 - c8) / (2 (max(c6, c8) - c7)), small but not zero where the two sides differ: a mean
     # of 0.007 px here, at most 0.18 (the parabola's (c6 - c8) / (2 (c6 + c8 - 2 c7)) is about
     # half that, and pulls a true fraction towards the integer as much).
-    inner = sswjax.match(left, right, ndisp=NDISP, params=sswjax.preset("accurate").replace(
-        alignment=None))[:, SHIFT + MARGIN :]
+    inner = unaligned[:, SHIFT + MARGIN :]
     error = np.abs(inner - SHIFT)
     assert (error <= 0.05).mean() >= 0.98, (error <= 0.05).mean()
     assert error.mean() <= 0.01 and error.max() <= 0.5

@@ -28,10 +28,18 @@ class VerticalAlignment(Part):
                          "run on the pair halved this many times")
     candidates: int = option(7, static=True, low=3, high=15, odd=True, help="vertical offsets "
                              "tried per tile, centred on 0")
-    step: float = option(0.2, above=0, help="full-resolution pixels between the candidate "
+    # 0.4 px (a span of +-1.2 px): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0
+    # and 0.5, among spans of +-0.6 to +-1.33 px (docs/alignment.md, "The candidates' span").
+    step: float = option(0.4, above=0, help="full-resolution pixels between the candidate "
                          "offsets")
     tiles: int = option(4, static=True, low=2, high=16, help="the offsets are measured on a "
                         "grid of tiles x tiles tiles")
+    # 256 (16 x 16 at the measured level): a tile of fewer valid pixels does not count. On
+    # white noise, which the first pass cannot match at its halved level, tiles of 72 pixels
+    # (a 48 x 96 pair) gave spurious offsets of up to a pixel at the corners; from 384 pixels
+    # on, 99.7 % of the map stayed within 0.1 px (docs/alignment.md, "Limits").
+    min_pixels: int = option(256, static=True, low=1, help="valid pixels a tile needs to count, "
+                             "at the measured level")
 
     def first_pass(self, params):
         """The parameters of the first pass, run on the pair halved ``levels`` times: the
@@ -51,7 +59,8 @@ class VerticalAlignment(Part):
         (K, H, W), at :meth:`offsets` ``(scale)``) where ``valid`` (bool (H, W)): float32 (3,).
         The normalised coordinates are those of every level, so the coefficients scale as the
         offsets do. ``size``: the pair's own (H, W) at that level within padding (int32 (2,))."""
-        tiles = tile_offsets(costs, valid, step=self.step / scale, tiles=self.tiles, size=size)
+        tiles = tile_offsets(costs, valid, step=self.step / scale, tiles=self.tiles,
+                             min_pixels=self.min_pixels, size=size)
         return fit_offsets(tiles) * scale
 
     def apply(self, right: jax.Array, coefficients: jax.Array, *, size=None) -> jax.Array:
