@@ -36,6 +36,9 @@ def aligned_separately(params: Params, plan) -> bool:
 @functools.partial(jax.jit, static_argnames=("limit",))
 def _aligned_right(small_left, small_right, right, params: Params, disparity, rejected, *,
                    limit: int):
+    """``right`` (float32 (H, W, C), the full pair's) moved by the offset measured on the halved
+    pair (``small_left``, ``small_right``: float32 (h, w, C)) at the first pass's ``disparity``
+    (float32 (h, w)) where it was not ``rejected`` (bool (h, w)); disparities ``0 .. limit - 1``."""
     coefficients = alignment_coefficients(small_left, small_right, params, disparity, rejected,
                                           limit=limit, scale=2 ** params.alignment.levels)
     return params.alignment.apply(right, coefficients)

@@ -82,7 +82,8 @@ COEFFICIENTS: dict[str, float] = {
     "band": 3.66e8,
     "alignment": 3.6e8,
 }
-"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-04)."""
+"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-04); the
+``alignment`` term measured (2026-12-06, see the terms above)."""
 
 COMPILE_FLOOR: dict[str, float] = {"none": 0.482e9, "sgm": 0.594e9}
 """Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling, without / with SGM."""
