@@ -161,7 +161,7 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params: Params |
     >>> from sswjax.config import preset
     >>> small = estimate_peak_bytes(497, 741, 70, params=preset("accurate"))
     >>> large = estimate_peak_bytes(1988, 2964, 280, params=preset("accurate"))
-    >>> large > 10 * small
+    >>> large > 8 * small   # the constant terms (the process, the alignment's compile) aside
     True
     """
     for name, value in (("height", height), ("width", width), ("ndisp", ndisp)):
@@ -260,7 +260,7 @@ def check_memory(height: int, width: int, ndisp: int, *, params: Params | None =
     >>> check_memory(100, 200, 16, limit=1e6)
     Traceback (most recent call last):
     ...
-    sswjax.runtime.memory.MemoryEstimateError: ...
+    sswjax.runtime.refusal.MemoryEstimateError: ...
     """
     return _assess((height, width, ndisp), params, plan, channels, _bound(limit), choose=False)[0]
 
