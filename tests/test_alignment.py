@@ -10,6 +10,7 @@ import sswjax
 from sswjax import ExecutionPlan
 from sswjax.graph.alignment import align_right, alignment_coefficients, halved_levels
 from sswjax.graph.match import carries_paths, match_maps
+from sswjax.stages.alignment import tile_offsets
 
 HEIGHT, WIDTH, NDISP = 96, 128, 16
 TRUTH = np.array([0.3, -0.25, 0.35])  # c0, c1, c2 of dy = c0 + c1 u + c2 v
@@ -123,3 +124,42 @@ def test_the_first_pass_is_the_whole_volume_method():
         alignment={"kind": "vertical"}))
     assert first.alignment is None and first.smoothing is None and first.coarse is None
     assert first.optimizer == sswjax.preset("fast").optimizer
+
+
+@pytest.mark.parametrize("tiles, levels", [(4, 1), (3, 2), (6, 1)])
+def test_a_pair_too_small_for_a_tile_is_not_measured(tiles, levels):
+    """``measurable`` bounds from above the valid pixels of ``tile_offsets``' largest tile (its
+    weight over a cost curve of curvature 2 at every pixel) for any own size within a padded
+    shape: where it says no, no tile reaches the floor."""
+    alignment = sswjax.config.VerticalAlignment(tiles=tiles, levels=levels)
+    for height, width in [(20, 30), (60, 90), (100, 100), (129, 131), (150, 200), (300, 150)]:
+        small = [height, width]
+        for _ in range(levels):
+            small = [(size + 1) // 2 for size in small]
+        costs = jnp.broadcast_to(jnp.array([1.0, 0.0, 1.0])[:, None, None], (3, *small))
+        largest = 0
+        for own in [small, [small[0] - 3, small[1]], [small[0], small[1] - 5],
+                    [small[0] - 1, small[1] - 2]]:
+            valid = (np.arange(small[0])[:, None] < own[0]) & (np.arange(small[1]) < own[1])
+            weights = tile_offsets(costs, jnp.asarray(valid), step=1.0, tiles=tiles,
+                                   min_pixels=1, size=jnp.array(own))[:, 3]
+            largest = max(largest, round(float(np.asarray(weights).max()) / 2))
+        measurable = alignment.measurable((height, width))
+        assert measurable or largest < alignment.min_pixels
+        if largest >= alignment.min_pixels:
+            assert measurable
+    assert not alignment.measurable((20, 30)) and alignment.measurable((300, 300))
+
+
+def test_a_pair_too_small_is_matched_unaligned():
+    """Below the floor the stage is left out of the graph: the default's map is the unaligned
+    method's, exactly, in one call and in strips."""
+    left, right, _ = _moved_pair(48, 96)
+    params = sswjax.preset("accurate")
+    assert not params.alignment.measurable(left.shape[:2])
+    plain = sswjax.match(left, right, NDISP, params=params.replace(alignment=None))
+    np.testing.assert_array_equal(sswjax.match(left, right, NDISP, params=params), plain)
+    strips = ExecutionPlan(strip_rows=24, strip_overlap=8)
+    np.testing.assert_array_equal(
+        sswjax.match(left, right, NDISP, params=params, plan=strips),
+        sswjax.match(left, right, NDISP, params=params.replace(alignment=None), plan=strips))

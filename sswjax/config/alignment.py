@@ -47,6 +47,20 @@ class VerticalAlignment(Part):
         and the smoothing."""
         return params.replace(alignment=None, coarse=None, band=None, smoothing=None)
 
+    def measurable(self, shape) -> bool:
+        """Whether a pair of ``shape`` (its static ``(H, W)``, a bucket's padding included) can
+        have a tile of ``min_pixels`` at the measured level. When no tile can, the offset is
+        0 whatever the images, so the graph leaves the stage out (the same map, without the
+        first pass to compile). A bound from above: the pair halved ``levels`` times (sizes
+        rounded up), and the largest tile that any own size within it can give (the last of
+        ``tiles`` takes ``size // tiles`` plus the remainder, at most ``tiles - 1``)."""
+        largest = 1
+        for size in shape:
+            for _ in range(self.levels):
+                size = (size + 1) // 2
+            largest *= min(size, size // self.tiles + self.tiles - 1)
+        return largest >= self.min_pixels
+
     def offsets(self, scale: int = 1) -> jax.Array:
         """The candidate offsets in pixels of a level ``scale`` times coarser than the pair:
         float32 (candidates,)."""

@@ -88,12 +88,13 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
         check_carried(params)
     limit = ndisp if valid_ndisp is None else valid_ndisp
     scene = carried = None
-    if params.alignment is not None:
+    if params.alignment is not None and params.alignment.measurable(left.shape[:2]):
         # The first pass, the offset measured, the right image moved: then the method.
         right, _ = align_right(left, right, params, ndisp, valid_ndisp,
                                functools.partial(match_maps, chunk=chunk),
                                valid_shape=valid_shape)
-        params = params.replace(alignment=None)
+    # Aligned, or too small for a tile to be measured (the offset would be 0).
+    params = params.replace(alignment=None)
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
         # The smoothing acts once, on the full-resolution map; the band at every level that

@@ -204,7 +204,8 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     """``graph(left, right, params=, ndisp=, chunk=[, valid_ndisp=])`` under ``plan``: padded
     to its bucket, in tiles or strips (:func:`~sswjax.runtime.tiles.in_tiles`), cropped back;
     or by the plan's engine. A pair that is aligned (``params.alignment``) and cut into
-    windows is aligned once on the whole pair first (:mod:`sswjax.runtime.aligned`).
+    windows is aligned once on the whole pair first (:mod:`sswjax.runtime.aligned`); one too
+    small for a tile to be measured (``VerticalAlignment.measurable``) is matched without it.
 
     Parameters
     ----------
@@ -220,6 +221,10 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     -------
     numpy.ndarray (H, W), or the same NamedTuple of them
     """
+    if params.alignment is not None and not params.alignment.measurable(left.shape[:2]):
+        # Too small for a tile to be measured: the offset is 0, and the pair is matched as
+        # without the alignment (in strips, as such a method carries its paths).
+        params = params.replace(alignment=None)
     if aligned_separately(params, plan):
         return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
                                plan=plan)
