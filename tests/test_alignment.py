@@ -8,6 +8,7 @@ from scipy.ndimage import gaussian_filter, map_coordinates
 
 import sswjax
 from sswjax import ExecutionPlan
+from sswjax.config import LeftRightCheck
 from sswjax.graph.alignment import align_right, alignment_coefficients, halved_levels
 from sswjax.graph.match import carries_paths, match_maps
 from sswjax.stages.alignment import tile_offsets
@@ -120,10 +121,14 @@ def test_an_aligned_pair_is_unchanged_when_nothing_is_off():
 
 
 def test_the_first_pass_is_the_whole_volume_method():
-    first = _params(levels=1).alignment.first_pass(sswjax.preset("fast").replace(
-        alignment={"kind": "vertical"}))
-    assert first.alignment is None and first.smoothing is None and first.coarse is None
-    assert first.optimizer == sswjax.preset("fast").optimizer
+    fast = sswjax.preset("fast")
+    for checks, expected in [("method", fast.checks), ("none", None),
+                             ("left-right", LeftRightCheck(tolerance=fast.checks.tolerance))]:
+        first = _params(checks=checks).alignment.first_pass(fast.replace(
+            alignment={"kind": "vertical"}))
+        assert first.alignment is None and first.smoothing is None and first.coarse is None
+        assert first.refinement is None and first.band is None
+        assert first.optimizer == fast.optimizer and first.checks == expected
 
 
 @pytest.mark.parametrize("tiles, levels", [(4, 1), (3, 2), (6, 1)])

@@ -11,10 +11,15 @@ import jax
 import jax.numpy as jnp
 
 from sswjax.config.fields import option
+from sswjax.config.fill import BackgroundFill
 from sswjax.config.parts import Part, register
+from sswjax.config.selection import LeftRightCheck
 from sswjax.stages.alignment import affine_offsets, fit_offsets, shift_rows, tile_offsets
 
-__all__ = ["VerticalAlignment"]
+__all__ = ["FIRST_PASS_CHECKS", "VerticalAlignment"]
+
+FIRST_PASS_CHECKS = ("method", "left-right", "none")
+"""The choices of :attr:`VerticalAlignment.checks`."""
 
 
 @register("alignment", "vertical")
@@ -41,11 +46,27 @@ class VerticalAlignment(Part):
     min_pixels: int = option(256, static=True, low=1, help="valid pixels a tile needs to count, "
                              "at the measured level")
 
+    # 'none': every pixel's cost counts, the mismatched ones' too (their cost hardly varies
+    # with the offset): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0 and 0.5,
+    # against the method's checks and the left-right check alone (docs/alignment.md, "The
+    # first pass's checks").
+    checks: str = option("none", static=True, choices=FIRST_PASS_CHECKS,
+                         help="the pixels of the first pass whose cost counts: 'method' those "
+                              "the method's checks keep, 'left-right' those its left-right "
+                              "check keeps, 'none' all")
+
     def first_pass(self, params):
         """The parameters of the first pass, run on the pair halved ``levels`` times: the
-        method of ``params`` over its whole volume, without this stage, coarse-to-fine, the band
-        and the smoothing."""
-        return params.replace(alignment=None, coarse=None, band=None, smoothing=None)
+        method of ``params`` over its whole volume, without this stage, coarse-to-fine, the
+        band, the median and the smoothing, its checks as :attr:`checks` says (the pixels they
+        reject do not count, so they are filled by the cheapest fill)."""
+        checks = params.checks
+        if checks is not None and self.checks != "method":
+            checks = LeftRightCheck(tolerance=checks.tolerance) \
+                if self.checks == "left-right" else None
+        return params.replace(alignment=None, coarse=None, band=None, smoothing=None,
+                              refinement=None, checks=checks,
+                              fill=BackgroundFill(median_radius=0))
 
     def measurable(self, shape) -> bool:
         """Whether a pair of ``shape`` (its static ``(H, W)``, a bucket's padding included) can
