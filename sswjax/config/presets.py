@@ -23,8 +23,8 @@ the refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``). ``accura
 penalties (P1 0.35, P2 2.4) were gridded again on the finished pipeline; ``fast`` and
 ``balanced`` keep theirs by the rule (``docs/beyond-the-paper.md``). ``accurate`` first aligns
 the right image's rows to the left's (the vertical offset measured on its method over the pair
-halved once: chosen by the rule on bad 2.0 and over 2.0, 1.0 and 0.5, for about a third more
-time); ``fast`` stays without it (half again its time for little at bad 2.0,
+halved once, every pixel of that first pass counting: chosen by the rule on bad 2.0 and over
+2.0, 1.0 and 0.5, for about a third more time); ``fast`` stays without it (half again its time for little at bad 2.0,
 ``docs/alignment.md``).
 """
 
