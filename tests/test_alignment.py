@@ -1,6 +1,7 @@
 """The vertical alignment (``params.alignment``): a pair whose right image is moved vertically by
 a known affine offset has it measured back, in the graph and in strips, and matches better."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -137,6 +138,8 @@ def test_a_pair_too_small_for_a_tile_is_not_measured(tiles, levels):
     weight over a cost curve of curvature 2 at every pixel) for any own size within a padded
     shape: where it says no, no tile reaches the floor."""
     alignment = sswjax.config.VerticalAlignment(tiles=tiles, levels=levels)
+    pixels = jax.jit(lambda costs, valid, size: tile_offsets(
+        costs, valid, step=1.0, tiles=tiles, min_pixels=1, size=size)[:, 3] / 2)
     for height, width in [(20, 30), (60, 90), (100, 100), (129, 131), (150, 200), (300, 150)]:
         small = [height, width]
         for _ in range(levels):
@@ -146,13 +149,8 @@ def test_a_pair_too_small_for_a_tile_is_not_measured(tiles, levels):
         for own in [small, [small[0] - 3, small[1]], [small[0], small[1] - 5],
                     [small[0] - 1, small[1] - 2]]:
             valid = (np.arange(small[0])[:, None] < own[0]) & (np.arange(small[1]) < own[1])
-            weights = tile_offsets(costs, jnp.asarray(valid), step=1.0, tiles=tiles,
-                                   min_pixels=1, size=jnp.array(own))[:, 3]
-            largest = max(largest, round(float(np.asarray(weights).max()) / 2))
-        measurable = alignment.measurable((height, width))
-        assert measurable or largest < alignment.min_pixels
-        if largest >= alignment.min_pixels:
-            assert measurable
+            largest = max(largest, round(float(pixels(costs, valid, jnp.array(own)).max())))
+        assert alignment.measurable((height, width)) or largest < alignment.min_pixels
     assert not alignment.measurable((20, 30)) and alignment.measurable((300, 300))
 
 

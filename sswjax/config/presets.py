@@ -24,8 +24,8 @@ penalties (P1 0.35, P2 2.4) were gridded again on the finished pipeline; ``fast`
 ``balanced`` keep theirs by the rule (``docs/beyond-the-paper.md``). ``accurate`` first aligns
 the right image's rows to the left's (the vertical offset measured on its method over the pair
 halved once, every pixel of that first pass counting: chosen by the rule on bad 2.0 and over
-2.0, 1.0 and 0.5, for about a third more time); ``fast`` stays without it (half again its time for little at bad 2.0,
-``docs/alignment.md``).
+2.0, 1.0 and 0.5, for about a third more time); ``fast`` stays without it (half again its
+time for little at bad 2.0, ``docs/alignment.md``).
 """
 
 from __future__ import annotations
@@ -97,8 +97,9 @@ _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=Tru
 # fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
 # 0.5 on the three sets, for about a fifth more time (docs/precision.md). With the refit, its
 # halved pair takes accurate's one side-window pass and its penalties of then (_PATHS) instead
-# of three passes at P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0 and over 2.0, 1.0
-# and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as accurate's").
+# of three passes at P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0
+# and over 2.0, 1.0 and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as
+# accurate's").
 _FAST = _SEMI_GLOBAL.replace(aggregation=_ONE_PASS, optimizer=_PATHS,
                              coarse=CoarseToFine(levels=1, refit_radius=2),
                              smoothing=_SMOOTHING.replace(separable=True, iterations=3))
