@@ -2,7 +2,8 @@
 the cost at its map at that level, the full-resolution right image moved.
 
 Array conventions: images float32 ``(H, W, C)`` in [0, 1]; maps float32 ``(H, W)`` in pixels;
-coefficients float32 ``(3,)`` (:mod:`sswjax.stages.alignment`).
+coefficients float32 ``(3,)``, or ``(3 + tiles * tiles,)`` with the 'grid' model
+(:meth:`sswjax.config.VerticalAlignment.coefficients`).
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ def alignment_coefficients(left: jax.Array, right: jax.Array, params: Params,
 
     Returns
     -------
-    float32 (3,)
+    float32 (3,) or (3 + tiles * tiles,)
+        :meth:`~sswjax.config.VerticalAlignment.coefficients`.
     """
     alignment = params.alignment
     height, width = disparity.shape
@@ -102,7 +104,7 @@ def align_right(left: jax.Array, right: jax.Array, params: Params, ndisp: int, v
 
     Returns
     -------
-    (float32 (H, W, C), float32 (3,))
+    (float32 (H, W, C), float32 (3,) or (3 + tiles * tiles,))
     """
     alignment = params.alignment
     small_left, small_right, small_ndisp, small_valid, small_shape = halved_levels(

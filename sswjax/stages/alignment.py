@@ -15,7 +15,9 @@ column term, a scale's row term): ``dy(y, x) = c0 + c1 u + c2 v`` with ``u = (x 
 the cost of Eq. (5) of each pixel at its (rounded) disparity, with the two images moved apart by
 each of a few candidate offsets, is averaged over each tile of a grid; a parabola through the
 lowest mean and its neighbours gives the tile's offset, weighted by its curvature times its
-pixels; a weighted least-squares plane through the tiles gives the coefficients.
+pixels; a weighted least-squares plane through the tiles gives the coefficients. Each tile's
+own departure from the plane can be kept too, bilinear between the tiles' centres
+(:func:`grid_offsets`): a calibration's leftover lens distortion bends the rows.
 
 Array conventions (whole module): images float32 ``(H, W, C)``; offsets float32 ``(H, W)`` in
 pixels, positive when the right image's matching row is below the left's (``right(y + dy, x -
@@ -29,7 +31,7 @@ import jax.numpy as jnp
 
 from sswjax._checks import check_positive_int, check_rank
 
-__all__ = ["affine_offsets", "fit_offsets", "shift_rows", "tile_offsets"]
+__all__ = ["affine_offsets", "fit_offsets", "grid_offsets", "shift_rows", "tile_offsets"]
 
 
 def affine_offsets(coefficients: jax.Array, shape: tuple[int, int], *, size=None) -> jax.Array:
@@ -62,6 +64,56 @@ def affine_offsets(coefficients: jax.Array, shape: tuple[int, int], *, size=None
     u = (jnp.arange(width, dtype=jnp.float32) - (own_width - 1) / 2) / own_width
     v = (jnp.arange(height, dtype=jnp.float32) - (own_height - 1) / 2) / own_height
     return coefficients[0] + coefficients[1] * u[None, :] + coefficients[2] * v[:, None]
+
+
+def grid_offsets(residuals: jax.Array, shape: tuple[int, int], *, size=None) -> jax.Array:
+    """Each pixel's share of the tiles' own offsets: bilinear between the tiles' centres, the
+    nearest edge tiles' beyond them (the tile grid of :func:`tile_offsets`, its centres taken at
+    ``(i + 1/2) own / tiles``; the last tile's remainder, under ``tiles`` pixels at the measured
+    level, is left out).
+
+    Parameters
+    ----------
+    residuals : float32 (tiles, tiles)
+        Per tile (row of tiles, column of tiles), its offset less the plane's at its centre.
+    shape : (int, int)
+        ``(H, W)``.
+    size : int32 (2,), optional
+        The image's own height and width within padding to ``shape`` (traced values are fine).
+        Default ``shape``.
+
+    Returns
+    -------
+    float32 (H, W)
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> dy = grid_offsets(jnp.array([[0.0, 1.0], [0.0, 1.0]]), (2, 8))
+    >>> [round(float(v), 3) for v in dy[0]]
+    [0.0, 0.0, 0.125, 0.375, 0.625, 0.875, 1.0, 1.0]
+    """
+    check_rank("residuals", residuals, 2)
+    tiles = residuals.shape[0]
+    if residuals.shape != (tiles, tiles):
+        raise ValueError(f"residuals must be square, got {residuals.shape}")
+    height, width = shape
+    own_height, own_width = (height, width) if size is None else (size[0], size[1])
+
+    def axis(count, own):  # the two tiles around each row (or column), and the second's weight
+        at = jnp.clip((jnp.arange(count, dtype=jnp.float32) + 0.5) / own * tiles - 0.5, 0,
+                      tiles - 1)
+        first = jnp.floor(at).astype(jnp.int32)
+        return first, jnp.minimum(first + 1, tiles - 1), at - first
+
+    top, bottom, down = axis(height, own_height)
+    left, right, across = axis(width, own_width)
+
+    def across_rows(row):  # float32 (H, W): the residuals of tile row ``row[y]``, across
+        return residuals[row][:, left] * (1 - across) + residuals[row][:, right] * across
+
+    return (across_rows(top) * (1 - down)[:, None]
+            + across_rows(bottom) * down[:, None]).astype(jnp.float32)
 
 
 def shift_rows(image: jax.Array, offsets: jax.Array) -> jax.Array:

@@ -5,7 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sswjax.stages.alignment import affine_offsets, fit_offsets, shift_rows, tile_offsets
+from sswjax.stages.alignment import (affine_offsets, fit_offsets, grid_offsets, shift_rows,
+                                     tile_offsets)
 
 
 def _shift_reference(image: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -46,6 +47,33 @@ def test_affine_offsets_matches_the_loop_reference():
         for x in range(width):
             u, v = (x - (width - 1) / 2) / width, (y - (height - 1) / 2) / height
             assert got[y, x] == pytest.approx(coefficients @ [1.0, u, v], abs=1e-6)
+
+
+def _grid_reference(residuals, height, width, own_height, own_width):
+    """Pixel by pixel: the four tiles whose centres ``(i + 1/2) own / tiles`` surround the
+    pixel's, bilinear; the edge tiles' values beyond the outer centres."""
+    tiles = residuals.shape[0]
+    out = np.zeros((height, width))
+    for y in range(height):
+        for x in range(width):
+            at_row = min(max((y + 0.5) / own_height * tiles - 0.5, 0.0), tiles - 1.0)
+            at_col = min(max((x + 0.5) / own_width * tiles - 0.5, 0.0), tiles - 1.0)
+            i, j = int(at_row), int(at_col)
+            i2, j2 = min(i + 1, tiles - 1), min(j + 1, tiles - 1)
+            a, b = at_row - i, at_col - j
+            out[y, x] = ((1 - a) * ((1 - b) * residuals[i, j] + b * residuals[i, j2])
+                         + a * ((1 - b) * residuals[i2, j] + b * residuals[i2, j2]))
+    return out
+
+
+@pytest.mark.parametrize("tiles,shape,size", [(3, (9, 14), None), (4, (12, 11), (10, 7)),
+                                              (2, (5, 6), None)])
+def test_grid_offsets_matches_the_loop_reference(tiles, shape, size):
+    residuals = np.random.default_rng(tiles).normal(0, 0.5, (tiles, tiles)).astype(np.float32)
+    got = np.asarray(grid_offsets(jnp.asarray(residuals), shape,
+                                  size=None if size is None else jnp.asarray(size)))
+    own = shape if size is None else size
+    np.testing.assert_allclose(got, _grid_reference(residuals, *shape, *own), atol=1e-6)
 
 
 def _tiles_reference(costs, valid, step, tiles, min_pixels):
