@@ -95,12 +95,12 @@ def test_the_grid_follows_a_bent_offset_the_plane_cannot():
     left, right, disparity = _moved_pair(dy=dy)
     errors = {}
     for model in ("plane", "grid"):
-        alignment = _params(model=model, tiles=4).alignment
+        params = _params(model=model, tiles=4)
         coefficients = alignment_coefficients(
-            jnp.asarray(left), jnp.asarray(right), _params(model=model, tiles=4),
-            jnp.asarray(disparity), jnp.zeros(disparity.shape, bool), limit=NDISP)
+            jnp.asarray(left), jnp.asarray(right), params, jnp.asarray(disparity),
+            jnp.zeros(disparity.shape, bool), limit=NDISP)
         assert coefficients.shape == ((3,) if model == "plane" else (3 + 16,))
-        measured = np.asarray(alignment.offset_map(coefficients, disparity.shape))
+        measured = np.asarray(params.alignment.offset_map(coefficients, disparity.shape))
         # Between the outer tiles' centres (beyond them the grid keeps the edge tiles' values).
         errors[model] = np.mean(np.abs(measured - dy)[12:-12, 16:-16])
     # The plane leaves the bow (0.16 px off on average); the grid follows it to within its

@@ -42,8 +42,8 @@ class VerticalAlignment(Part):
     step: float = option(0.4, above=0, help="full-resolution pixels between the candidate "
                          "offsets")
     # 3 (with the 'grid' model): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0 and
-    # 0.5, among 2 to 8 tiles a side with either model (docs/alignment.md, "The tiles' own
-    # offsets").
+    # 0.5, among 2 to 8 tiles a side with the plane and 3 to 6 with the grid (docs/alignment.md,
+    # "The tiles' own offsets").
     tiles: int = option(3, static=True, low=2, high=16, help="the offsets are measured on a "
                         "grid of tiles x tiles tiles")
     # 256 (16 x 16 at the measured level): a tile of fewer valid pixels does not count. On
