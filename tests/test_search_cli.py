@@ -46,11 +46,13 @@ def user_folder(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def searched(user_folder, tmp_path_factory):
-    """One finished run: ``(exit code, stdout, stderr, output path)``."""
+    """One finished run: ``(exit code, output path)``. Its graphs go to this process's
+    compilation cache (conftest's folder of this test process), which the interrupted run of
+    :func:`test_interrupted_search_resumes_to_the_same_parameters` reads."""
     from sswjax.cli import main
 
     out = tmp_path_factory.mktemp("search") / "params.json"
-    code = main(["--no-cache", "search", "--data", str(user_folder), "-o", str(out), *QUICK])
+    code = main(["search", "--data", str(user_folder), "-o", str(out), *QUICK])
     return code, out
 
 
@@ -105,8 +107,9 @@ def test_interrupted_search_resumes_to_the_same_parameters(searched, user_folder
     out = tmp_path / "params.json"
     command = [sys.executable, "-m", "sswjax.cli", "search", "--data", str(user_folder), "-o",
                str(out), *QUICK]
-    # the resumed run loads what the first one compiled
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "SSWJAX_CACHE_DIR": str(tmp_path / "xla")}
+    # Both runs load the graphs that ``searched`` compiled into this process's cache
+    # (SSWJAX_CACHE_DIR, inherited): what they test is the stop and the resume, not compiling.
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     first = out.with_name("params.json.search") / "fold-bottom" / "start-0" / "log.json"  # done
     deadline = time.monotonic() + 300
