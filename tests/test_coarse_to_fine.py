@@ -1,5 +1,6 @@
 """The coarse-to-fine pipeline (``coarse_levels > 0``, the ``fast`` preset) end to end."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -47,16 +48,19 @@ def test_a_traced_range_within_a_padded_volume_gives_the_same_map():
 
 def test_the_refit_is_the_stage_on_the_doubled_map():
     """``coarse.refit_radius``: the graph's map is the refit of the doubled map, then its
-    smoothing, as benchmarks/refit.py applies them to maps computed without either."""
+    smoothing, as benchmarks/refit.py applies them (jitted) to maps computed without either.
+    16 disparities, as the test above: the whole graph (fast, 48 x 96) compiles once for both."""
     left, right = map(jnp.asarray, _shifted_pair(7))
-    params = sswjax.preset("fast")
+    params, ndisp = sswjax.preset("fast"), 16
     assert params.coarse.refit_radius == 2
     doubled = ssw_disparity(left, right, params.replace(**{"coarse.refit_radius": 0},
-                                                        smoothing=None), ndisp=NDISP)
-    fitted = refit_on_cost(left, right, params, doubled, limit=NDISP)
+                                                        smoothing=None), ndisp=ndisp)
+    fitted = jax.jit(lambda l, r, d: refit_on_cost(l, r, params, d, limit=ndisp))(
+        left, right, doubled)
     assert float(jnp.abs(fitted - doubled).max()) > 0.05  # the refit moved the map
-    np.testing.assert_allclose(ssw_disparity(left, right, params, ndisp=NDISP),
-                               params.smoothing.smooth(fitted, left, NDISP), atol=1e-5)
+    smooth = jax.jit(lambda d, l: params.smoothing.smooth(d, l, ndisp))
+    np.testing.assert_allclose(ssw_disparity(left, right, params, ndisp=ndisp),
+                               smooth(fitted, left), atol=1e-5)
 
 
 def test_two_levels_and_confidence_have_the_fine_shape():
