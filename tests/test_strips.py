@@ -49,6 +49,9 @@ def test_strips_with_buckets(pair):
     assert bucketed.shape == (90, 60) and np.isfinite(bucketed).all()
 
 
+NO_ALIGNMENT = sswjax.preset("accurate").replace(alignment=None)
+
+
 @pytest.fixture(scope="module")
 def striped_pair():
     """A 160x64 pair at disparity 7: texture on the bottom 60 rows, above them vertical
@@ -63,7 +66,9 @@ def striped_pair():
 def test_carried_paths_give_the_whole_images_map_in_strips(striped_pair):
     # Strips of 16 rows see 40 more on either side: without the paths carried from strip to
     # strip, those of the stripes restart in each window and 30 % of the pixels change.
-    params = sswjax.preset("accurate")
+    # (Without the vertical alignment, whose first pass would compile for nothing here:
+    # tests/test_alignment.py tests it in strips.)
+    params = NO_ALIGNMENT
     whole = sswjax.match(*striped_pair, 16, params=params)
     plan = ExecutionPlan(strip_rows=16, strip_overlap=40)
     np.testing.assert_array_equal(sswjax.match(*striped_pair, 16, params=params, plan=plan),
@@ -77,15 +82,17 @@ def test_carried_paths_give_the_whole_images_map_in_strips(striped_pair):
 
 def test_the_command_line_carries_the_paths_unless_told_not_to(striped_pair, tmp_path, run_cli):
     # The command line runs the stored graphs (persistent cache on): the seeds go in and out
-    # of their serialized form too.
+    # of their serialized form too. The method is the test above's (accurate without the
+    # alignment): the API's maps here are the graphs it compiled.
     for name, image in zip(("l.png", "r.png"), striped_pair):
         iio.imwrite(tmp_path / name, np.round(image * 255).astype(np.uint8))
     left, right = read_image(tmp_path / "l.png"), read_image(tmp_path / "r.png")
     for carry, flag in ((True, []), (False, ["--no-carry-paths"])):
         code, _, stderr = run_cli(["match", tmp_path / "l.png", tmp_path / "r.png", "--ndisp", 16,
-                                   "--strip-rows", 16, "--strip-overlap", 40, *flag,
-                                   "-o", tmp_path / f"{carry}.pfm"])
+                                   "--set", "alignment=none", "--strip-rows", 16,
+                                   "--strip-overlap", 40, *flag, "-o", tmp_path / f"{carry}.pfm"])
         assert code == 0, stderr
         plan = ExecutionPlan(strip_rows=16, strip_overlap=40, carry_paths=carry)
         np.testing.assert_array_equal(read_pfm(tmp_path / f"{carry}.pfm"),
-                                      sswjax.match(left, right, 16, plan=plan))
+                                      sswjax.match(left, right, 16, params=NO_ALIGNMENT,
+                                                   plan=plan))
