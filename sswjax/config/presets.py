@@ -24,8 +24,10 @@ penalties (P1 0.35, P2 2.4) were gridded again on the finished pipeline; ``fast`
 ``balanced`` keep theirs by the rule (``docs/beyond-the-paper.md``). ``accurate`` first aligns
 the right image's rows to the left's (the vertical offset measured on its method over the pair
 halved once, every pixel of that first pass counting: chosen by the rule on bad 2.0 and over
-2.0, 1.0 and 0.5, for about a third more time); ``fast`` stays without it (half again its
-time for little at bad 2.0, ``docs/alignment.md``).
+2.0, 1.0 and 0.5, for about a third more time), and so does ``balanced`` (its own first
+pass, chosen by the same rule, for about 45 % more time); ``fast`` stays without it (half
+again its time for little at bad 2.0, measured on a first pass or on its coarse pass,
+``docs/alignment.md``).
 """
 
 from __future__ import annotations
@@ -118,12 +120,15 @@ PRESETS: dict[str, Preset] = {
                    "doubled back guided by the left image and fitted again on the "
                    "full-resolution cost (coarse-to-fine): about 3-4x faster, less precise "
                    "below 2 pixels"),
+    # balanced aligns as accurate does, its first pass its own method over the pair halved:
+    # chosen by the held-out rule on bad 2.0 and over 2.0, 1.0 and 0.5, against no alignment
+    # and the offset measured on its own coarse pass (docs/alignment.md, "On the coarse pass").
     "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1), optimizer=_PATHS,
-                                         band=DisparityBand(width=7), alignment=None),
-                       "accurate on the pair halved, then again at full resolution over 7 "
-                       "disparities around each pixel's doubled disparity (the band): about 2x "
-                       "faster than accurate, ahead of it on KITTI and Middlebury 2001 at "
-                       "bad 2.0, behind on trainingQ"),
+                                         band=DisparityBand(width=7)),
+                       "aligned as accurate, then accurate on the pair halved and again at "
+                       "full resolution over 7 disparities around each pixel's doubled "
+                       "disparity (the band): about 1.5x faster than accurate, behind it at "
+                       "bad 2.0, ahead at 1.0 and 0.5 on KITTI"),
     "finest": Preset(_ACCURATE_WINDOWS.replace(
         aggregation=SideWindowAggregation(iterations=2),
         optimizer=SemiGlobal(paths=8, dtype="uint8", p1=0.05, p2=0.8),
