@@ -59,6 +59,10 @@ def _params(**options):
                                                         "min_pixels": 64, **options})
 
 
+# Jitted, as the graph runs them: op by op, each of their many small operations compiles alone.
+_coefficients = jax.jit(alignment_coefficients, static_argnames=("limit", "scale"))
+
+
 def _largest_error(params, coefficients):
     """The largest departure from the truth of the pair's offsets from ``coefficients``."""
     offsets = np.asarray(params.alignment.offset_map(coefficients, (HEIGHT, WIDTH)))
@@ -77,7 +81,7 @@ def test_the_offset_is_measured_at_the_true_map(moved_pair, model):
     for images, disparities, limit, scale, atol in [
             ((left, right), disparity, NDISP, 1, 0.06),
             ((small_left, small_right), small_map, NDISP // 2 + 1, 2, 0.08)]:
-        coefficients = alignment_coefficients(
+        coefficients = _coefficients(
             *map(jnp.asarray, images), params, jnp.asarray(disparities),
             jnp.zeros(disparities.shape, bool), limit=limit, scale=scale)
         if model == "plane":
@@ -96,7 +100,7 @@ def test_the_grid_follows_a_bent_offset_the_plane_cannot():
     errors = {}
     for model in ("plane", "grid"):
         params = _params(model=model, tiles=4)
-        coefficients = alignment_coefficients(
+        coefficients = _coefficients(
             jnp.asarray(left), jnp.asarray(right), params, jnp.asarray(disparity),
             jnp.zeros(disparity.shape, bool), limit=NDISP)
         assert coefficients.shape == ((3,) if model == "plane" else (3 + 16,))
@@ -116,8 +120,8 @@ def test_the_graph_aligns_then_matches_better(moved_pair):
     def match(*args, **kwargs):
         return match_maps(*args, chunk=4, **kwargs)
 
-    moved, coefficients = align_right(jnp.asarray(left), jnp.asarray(right), params, NDISP, None,
-                                      match)
+    moved, coefficients = jax.jit(lambda a, b: align_right(a, b, params, NDISP, None, match))(
+        jnp.asarray(left), jnp.asarray(right))
     assert _largest_error(params, coefficients) < 0.12
     aligned = np.asarray(sswjax.match(left, right, NDISP, params=params))
     plain = np.asarray(sswjax.match(left, right, NDISP,
@@ -148,9 +152,9 @@ def test_an_aligned_pair_is_unchanged_when_nothing_is_off():
     image = gaussian_filter(rng.random((64, 96, 1)), (1.0, 1.0, 0)).astype(np.float32)
     image = (image - image.min()) / np.ptp(image)
     left, right = image[:, :-8], image[:, 8:]  # disparity 8 everywhere, no vertical offset
-    coefficients = alignment_coefficients(jnp.asarray(left), jnp.asarray(right), _params(),
-                                          jnp.full(left.shape[:2], 8.0),
-                                          jnp.zeros(left.shape[:2], bool), limit=12)
+    coefficients = _coefficients(jnp.asarray(left), jnp.asarray(right), _params(),
+                                 jnp.full(left.shape[:2], 8.0), jnp.zeros(left.shape[:2], bool),
+                                 limit=12)
     assert np.abs(np.asarray(coefficients)).max() < 0.03
 
 
