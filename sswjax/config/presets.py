@@ -127,8 +127,8 @@ PRESETS: dict[str, Preset] = {
                                          band=DisparityBand(width=7)),
                        "aligned as accurate, then accurate on the pair halved and again at "
                        "full resolution over 7 disparities around each pixel's doubled "
-                       "disparity (the band): about 1.5x faster than accurate, behind it at "
-                       "bad 2.0, ahead at 1.0 and 0.5 on KITTI"),
+                       "disparity (the band): about 1.8x faster than accurate on large "
+                       "pairs, behind it at bad 2.0, ahead at 1.0 and 0.5 on KITTI"),
     "finest": Preset(_ACCURATE_WINDOWS.replace(
         aggregation=SideWindowAggregation(iterations=2),
         optimizer=SemiGlobal(paths=8, dtype="uint8", p1=0.05, p2=0.8),
