@@ -224,11 +224,18 @@ def test_carried_strips_are_one_task_with_the_maps_of_this_process(client, textu
     # Semi-global paths run on from strip to strip: the chain of strips waits for itself, so it
     # runs as one task, and its maps are those of the strips matched here (the cheap method
     # with accurate's 4 paths: the paths are what is carried).
-    right = texture(9, (72, WIDTH, 3))
-    left = np.roll(right, SHIFT, axis=1)
+    # Above the texture of the bottom rows, vertical stripes of period 4 match alike at
+    # disparities 3 and 7 (the pair's): there the carried paths decide, and strips that
+    # restarted them would give another map (measured: 40 % of the pixels).
+    right = texture(9, (96, WIDTH, 3))
+    right[:64] = np.array([50, 200, 100, 150], np.uint8)[np.arange(WIDTH) % 4][None, :, None]
+    left = np.roll(right, 7, axis=1)
     plan = sswjax.ExecutionPlan(strip_rows=16, strip_overlap=16)
     params = CHEAP.replace(optimizer=sswjax.preset("accurate").optimizer)
     here = sswjax.match(left, right, NDISP, params=params, plan=plan)
+    restarted = sswjax.match(left, right, NDISP, params=params,
+                             plan=plan._replace(carry_paths=False))
+    assert np.mean(restarted != here) > 0.2
     there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
     assert there.tobytes() == here.tobytes()
 
