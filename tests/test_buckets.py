@@ -83,6 +83,9 @@ def test_a_padded_pair_is_matched_as_at_its_own_size(name):
     left, right, _ = skimage.data.stereo_motorcycle()
     left, right = (image[250:250 + 3 * 75:3, 100:100 + 3 * 203:3] for image in (left, right))
     params = sswjax.preset(name)
+    if name == "balanced":
+        # Its alignment is accurate's, padded above: here its coarse pass and band.
+        params = params.replace(alignment=None)
     own = sswjax.match(left, right, 24, params=params)
     padded = sswjax.match(left, right, 24, params=params,
                           buckets=ShapeBuckets(size_step=64, ndisp_step=32))
