@@ -21,8 +21,8 @@ less optimised: on a quiet machine, ``tests/test_graph.py`` and ``tests/test_chu
 first in 5.9 instead of 6.7 s, ran warm in 0.42 instead of 0.054 s, its mean disparity 1e-6 off.
 Benchmarks and users compile with XLA's defaults, and so do the processes of the tests that
 measure memory or run large pairs (``user_environment``); ``tests/test_suite_flags.py`` checks
-that both flags give the same maps to rounding. The whole suite took 774 s on a fresh clone
-(2026-12-04, 2 cores). XLA's older fusion emitters (``--xla_cpu_use_fusion_emitters=false``)
+that both flags give the same maps to rounding. The whole suite took 748 s on a fresh clone
+(2026-12-06, 2 cores). XLA's older fusion emitters (``--xla_cpu_use_fusion_emitters=false``)
 compile faster still (612 s) but are not what users run and compute differently: three tests
 failed with them (a winner changed, an ill-conditioned guided filter moved by 4e-3), so they
 are not used.
