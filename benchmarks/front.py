@@ -141,6 +141,45 @@ def ahead_of_faster_peers(rows: list[dict], set_name: str) -> None:
         row[f"{set_name} ahead"] = all(row[key] < p[key] for p in faster)
 
 
+_PLACES = ((4.0, 4.0, "left"), (4.0, -12.0, "left"), (-4.0, 4.0, "right"),
+           (-4.0, -12.0, "right"), (4.0, 13.0, "left"), (4.0, -21.0, "left"))
+"""Where a label may go beside its marker, in order: its offset in points and alignment."""
+
+
+def _label_places(anchors, labels: list[str]) -> list[tuple[float, float, str]]:
+    """Each label's place beside its marker (``anchors``: the markers in points, (N, 2)): the
+    first of :data:`_PLACES` whose box (8-point text: about 6 points per character, 9 high)
+    overlaps no label placed before it, else the first."""
+    boxes, places = [], []
+    for (x, y), label in zip(anchors, labels):
+        width = 6.0 * len(label)
+
+        def box(place):
+            dx, dy, align = place
+            left = x + dx if align == "left" else x + dx - width
+            return left, left + width, y + dy, y + dy + 9.0
+
+        free = [place for place in _PLACES
+                if not any(a < d and c < b and e < h and g < f
+                           for a, b, e, f in [box(place)] for c, d, g, h in boxes)]
+        chosen = (free or _PLACES)[0]
+        boxes.append(box(chosen))
+        places.append(chosen)
+    return places
+
+
+def _annotate(axis, rows: list[dict], set_name: str, dpi: float) -> list:
+    """The methods' names beside their markers on ``axis`` (:func:`_label_places`)."""
+    shown = [row for row in rows if f"{set_name} s/pair" in row]
+    points = [(row[f"{set_name} s/pair"], row[f"{set_name} bad2.0 all"]) for row in shown]
+    axis.autoscale_view()  # the limits the markers ask for, before they map to points
+    anchors = axis.transData.transform(points) * 72.0 / dpi if points else []
+    return [axis.annotate(row["method"], point, textcoords="offset points", xytext=(dx, dy),
+                          ha=align, fontsize=8)
+            for row, point, (dx, dy, align) in zip(
+                shown, points, _label_places(anchors, [r["method"] for r in shown]))]
+
+
 def plot(rows: list[dict], sets: list[str], path: Path) -> None:
     import matplotlib
     import matplotlib.ticker
@@ -151,13 +190,10 @@ def plot(rows: list[dict], sets: list[str], path: Path) -> None:
     figure, axes = plt.subplots(1, len(sets), figsize=(5 * len(sets), 4), squeeze=False)
     for axis, set_name in zip(axes[0], sets):
         for row in rows:
-            if f"{set_name} s/pair" not in row:
-                continue
-            x, y = row[f"{set_name} s/pair"], row[f"{set_name} bad2.0 all"]
-            marker = "o" if row["kind"] == "preset" else "s"
-            axis.scatter([x], [y], marker=marker, s=40)
-            axis.annotate(row["method"], (x, y), textcoords="offset points", xytext=(4, 4),
-                          fontsize=8)
+            if f"{set_name} s/pair" in row:
+                marker = "o" if row["kind"] == "preset" else "s"
+                axis.scatter([row[f"{set_name} s/pair"]], [row[f"{set_name} bad2.0 all"]],
+                             marker=marker, s=40)
         axis.set_xscale("log")
         axis.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         axis.set_xlabel("median time per pair (s, log)")
@@ -165,7 +201,15 @@ def plot(rows: list[dict], sets: list[str], path: Path) -> None:
         axis.set_title(set_name)
         axis.grid(True, which="both", alpha=0.3)
     figure.suptitle("sswjax presets (circles) and peers (squares): lower left is better")
-    figure.tight_layout()
+    # Labels placed where the axes end up: the layout makes room for them, so they are
+    # placed, the layout made, and placed again on the final axes.
+    labels = []
+    for _ in range(2):
+        figure.tight_layout()
+        for label in labels:
+            label.remove()
+        labels = [label for axis, set_name in zip(axes[0], sets)
+                  for label in _annotate(axis, rows, set_name, figure.dpi)]
     figure.savefig(path, dpi=120)
     plt.close(figure)
 

@@ -1,5 +1,6 @@
-"""The pure helpers of benchmarks/top_ops.py (a stage's wall time from a trace) and
-benchmarks/graph_ab.py (a function as a commit defines it)."""
+"""The pure helpers of benchmarks/top_ops.py (a stage's wall time from a trace),
+benchmarks/graph_ab.py (a function as a commit defines it) and benchmarks/front.py (where the
+plot's labels go)."""
 
 import subprocess
 import sys
@@ -11,6 +12,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
+import front  # noqa: E402
 import graph_ab  # noqa: E402
 import top_ops  # noqa: E402
 
@@ -30,6 +32,22 @@ def test_spans_give_each_stage_and_the_idle_time():
     assert "| optimization | 15.0 | 22.0 | 7.0 | 2 |" in table
     assert "| - | 30.0 | 31.0 | 1.0 | 1 |" in table
     assert "31.0 ms from the first operation to the last, 13.0 ms of it with no operation" in table
+
+
+def test_labels_of_close_markers_take_places_that_do_not_overlap():
+    # Three markers a few points apart on one row (as Middlebury 2001's presets are), one far.
+    anchors = [(211.0, 52.7), (206.7, 52.9), (239.4, 53.1), (400.0, 53.0)]
+    labels = ["accurate", "balanced", "finest", "pandora"]
+    places = front._label_places(anchors, labels)
+    assert places[0] == places[3] == front._PLACES[0]  # up and to the right when free
+    boxes = []
+    for (x, y), label, (dx, dy, align) in zip(anchors, labels, places):
+        width = 6.0 * len(label)
+        left = x + dx if align == "left" else x + dx - width
+        boxes.append((left, left + width, y + dy, y + dy + 9.0))
+    for i, (a, b, e, f) in enumerate(boxes):
+        for c, d, g, h in boxes[:i]:
+            assert not (a < d and c < b and e < h and g < f)
 
 
 def test_a_function_as_a_commit_defines_it():
