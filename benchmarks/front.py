@@ -146,24 +146,31 @@ _PLACES = ((4.0, 4.0, "left"), (4.0, -12.0, "left"), (-4.0, 4.0, "right"),
 """Where a label may go beside its marker, in order: its offset in points and alignment."""
 
 
+def _label_box(x: float, y: float, label: str, place) -> tuple[float, float, float, float]:
+    """``(left, right, bottom, top)`` in points of ``label`` at ``place`` (one of
+    :data:`_PLACES`) beside a marker at ``(x, y)``: 8-point text, about 6 points per
+    character, 9 high."""
+    dx, dy, align = place
+    width = 6.0 * len(label)
+    left = x + dx if align == "left" else x + dx - width
+    return left, left + width, y + dy, y + dy + 9.0
+
+
+def _overlap(one, other) -> bool:
+    """Whether two :func:`_label_box` boxes overlap."""
+    return one[0] < other[1] and other[0] < one[1] and one[2] < other[3] and other[2] < one[3]
+
+
 def _label_places(anchors, labels: list[str]) -> list[tuple[float, float, str]]:
     """Each label's place beside its marker (``anchors``: the markers in points, (N, 2)): the
-    first of :data:`_PLACES` whose box (8-point text: about 6 points per character, 9 high)
-    overlaps no label placed before it, else the first."""
+    first of :data:`_PLACES` whose :func:`_label_box` overlaps no label placed before it,
+    else the first."""
     boxes, places = [], []
     for (x, y), label in zip(anchors, labels):
-        width = 6.0 * len(label)
-
-        def box(place):
-            dx, dy, align = place
-            left = x + dx if align == "left" else x + dx - width
-            return left, left + width, y + dy, y + dy + 9.0
-
         free = [place for place in _PLACES
-                if not any(a < d and c < b and e < h and g < f
-                           for a, b, e, f in [box(place)] for c, d, g, h in boxes)]
+                if not any(_overlap(_label_box(x, y, label, place), box) for box in boxes)]
         chosen = (free or _PLACES)[0]
-        boxes.append(box(chosen))
+        boxes.append(_label_box(x, y, label, chosen))
         places.append(chosen)
     return places
 
