@@ -122,13 +122,17 @@ def spans(events: list[dict], names: dict[str, str]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path)
+    parser.add_argument("--data", type=Path,
+                        help="the data sets' folder (../shared/data), MiddEval3 or its trainingQ")
     parser.add_argument("--preset", default="accurate", choices=list(sswjax.PRESETS))
     parser.add_argument("--scene", default="Motorcycle")
     parser.add_argument("--top", type=int, default=30)
     parser.add_argument("--spans", action="store_true", help="each stage's wall time too")
     args = parser.parse_args()
-    (scene,) = load_scenes(find_data_root(data=args.data), scenes=[args.scene])
+    root = find_data_root(data=args.data)
+    if (root / "MiddEval3").is_dir():  # the data sets' folder, as front.py and band.py take it
+        root = root / "MiddEval3"
+    (scene,) = load_scenes(root, scenes=[args.scene])
     left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
     params = sswjax.preset(args.preset)
     names, sizes = compiled_tables(ssw_disparity.lower(left, right, params, ndisp=scene.ndisp)
