@@ -36,9 +36,10 @@ its table is in ``docs/speed-and-memory.md``. The terms:
 ``band``
     1 with a band: its graph's compilation; its ``h * w * K`` adds to ``volume`` and ``sgm``.
 ``alignment``
-    1 with the vertical alignment: compiling its first pass, a second copy of the method (the
-    peak with it less without, measured rather than fitted: 0.31 GB at 480 x 640 x 192, 0.30 at
-    960 x 1280 x 256, 0.36 on trainingQ's Vintage; its halved volumes do not add).
+    1 with the vertical alignment on a pair large enough to measure it (``measurable``; below
+    that the graph leaves it out): compiling its first pass, a second copy of the method (the
+    peak with it less without: 0.31 GB at 480 x 640 x 192, 0.30 at 960 x 1280 x 256, 0.36 on
+    trainingQ's Vintage; its halved volumes do not add).
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
@@ -69,33 +70,33 @@ STRIP_HEIGHTS = (512, 384, 256, 192, 128, 96, 64, 48, 32, 16)
 
 
 COEFFICIENTS: dict[str, float] = {
-    "base": 5.218e8,
-    "image": 14.04,
-    "window": 144.4,
-    "slic": 154.8,
-    "blocks": 8.076,
-    "volume": 23.57,
-    "sgm": 5.423,
-    "sgm_wide": 2.76,
-    "sgm8": 2.592,
-    "sgm_whole": 27.2,
-    "band": 3.66e8,
-    "alignment": 3.6e8,
+    "base": 4.619e8,
+    "image": 21.54,
+    "window": 176.4,
+    "slic": 121.0,
+    "blocks": 8.623,
+    "volume": 21.06,
+    "sgm": 5.013,
+    "sgm_wide": 2.827,
+    "sgm8": 4.444,
+    "sgm_whole": 30.08,
+    "band": 1.491e8,
+    "alignment": 2.141e8,
 }
-"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-04); the
-``alignment`` term measured (2026-12-06, see the terms above)."""
+"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-07, the
+presets aligned)."""
 
-COMPILE_FLOOR: dict[str, float] = {"none": 0.482e9, "sgm": 0.594e9}
+COMPILE_FLOOR: dict[str, float] = {"none": 0.447e9, "sgm": 0.569e9}
 """Peak bytes of a tiny pair (96 x 64 x 16): Python, JAX and compiling, without / with SGM."""
 
-MARGIN = 1.15
-"""Factor over the fitted model: the measured peaks were 0.81 to 1.14 times the model."""
+MARGIN = 1.18
+"""Factor over the fitted model: the measured peaks were 0.84 to 1.18 times the model."""
 
 SLACK = 150_000_000
 """Bytes added after the margin: run-to-run variation, and what the caller holds besides."""
 
 STATED_RATIO = 1.75
-"""Estimates are between 1 and this many times the measured peak (1.14 to 1.72 on the fit's
+"""Estimates are between 1 and this many times the measured peak (1.22 to 1.73 on the fit's
 sizes, ``docs/speed-and-memory.md``), more where the compile floor decides (small shapes)."""
 
 
@@ -141,7 +142,8 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
         "sgm_whole": matched * ndisp if sgm and whole else 0.0,
         "band": 0.0 if params.band is None else 1.0,
-        "alignment": 0.0 if params.alignment is None else 1.0,
+        "alignment": float(params.alignment is not None
+                           and params.alignment.measurable((height, width))),
     }
 
 
