@@ -39,7 +39,8 @@ its table is in ``docs/speed-and-memory.md``. The terms:
     1 with the vertical alignment on a pair large enough to measure it (``measurable``; below
     that the graph leaves it out): compiling its first pass, a second copy of the method (the
     peak with it less without: 0.31 GB at 480 x 640 x 192, 0.30 at 960 x 1280 x 256, 0.36 on
-    trainingQ's Vintage; its halved volumes do not add).
+    trainingQ's Vintage; its halved volumes do not add). Fitted with the other terms it is
+    0.21 GB: the refit of 2026-12-07 also lowered ``base`` by 0.06 GB and raised ``image``.
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
 the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
