@@ -15,6 +15,7 @@ import pytest
 import sswjax
 from sswjax import ExecutionPlan
 from sswjax.data.io import read_pfm
+from sswjax.runtime.execute import bind_graph, graph_call
 from sswjax.runtime.memory import (
     STRIP_HEIGHTS,
     MemoryEstimateError,
@@ -22,7 +23,7 @@ from sswjax.runtime.memory import (
     plan_for_memory,
     worker_peak_bytes,
 )
-from sswjax.runtime.plan import bind_graph, check_plan, graph_call
+from sswjax.runtime.plan import check_plan
 from sswjax.runtime.tiles import (
     CARRIED_COLLAR,
     PREFERRED_CORE,

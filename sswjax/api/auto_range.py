@@ -32,8 +32,9 @@ from sswjax.config import preset
 from sswjax.graph import ssw_outputs
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.executables import bounded
+from sswjax.runtime.execute import execute
 from sswjax.runtime.memory import plan_for_memory
-from sswjax.runtime.plan import ExecutionPlan, execute
+from sswjax.runtime.plan import ExecutionPlan
 from sswjax.stages.confidence import DEFAULT_THRESHOLD, validity_mask
 
 __all__ = [

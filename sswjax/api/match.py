@@ -19,8 +19,9 @@ from sswjax.config import Params, check_params, default_params
 from sswjax.graph import ssw_disparity, ssw_outputs
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.executables import bounded
+from sswjax.runtime.execute import execute
 from sswjax.runtime.memory import plan_for_memory
-from sswjax.runtime.plan import ExecutionPlan, check_plan, execute
+from sswjax.runtime.plan import ExecutionPlan, check_plan
 from sswjax.stages.confidence import DEFAULT_MEASURE, DEFAULT_THRESHOLD, MEASURES, validity_mask
 
 __all__ = ["Matched", "match", "match_graph", "match_with_confidence", "resolve_plan"]

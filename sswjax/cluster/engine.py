@@ -30,8 +30,9 @@ from sswjax.api.match import match, match_with_confidence
 from sswjax.cluster.tasks import graph_name, match_carried, match_window
 from sswjax.cluster.workers import require_distributed, worker_memory
 from sswjax.runtime.carried import carried_strips
+from sswjax.runtime.execute import graph_call
 from sswjax.runtime.memory import plan_for_memory
-from sswjax.runtime.plan import ExecutionPlan, graph_call, plan_tiling, pyramid_align
+from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align
 from sswjax.runtime.tiles import assemble, tile_windows
 
 __all__ = ["DaskEngine", "TileFailed", "match_tiles"]
@@ -87,7 +88,7 @@ class DaskEngine:
         return self.connect()
 
     def execute(self, graph, left, right, *, params, ndisp: int, plan: ExecutionPlan):
-        """:func:`sswjax.runtime.plan.execute` with each window a task (its arguments and
+        """:func:`sswjax.runtime.execute.execute` with each window a task (its arguments and
         returns the same); ``plan`` without its engine."""
         name, keywords = graph_name(graph)
         height, width = left.shape[:2]

@@ -28,8 +28,9 @@ from sswjax.data.io import read_image, write_pfm
 from sswjax.graph import ssw_cues, ssw_disparity, ssw_outputs
 from sswjax.runtime.carried import in_carried_strips
 from sswjax.runtime.executables import bounded
+from sswjax.runtime.execute import bind_graph
 from sswjax.runtime.memory import MemoryEstimateError
-from sswjax.runtime.plan import ExecutionPlan, bind_graph
+from sswjax.runtime.plan import ExecutionPlan
 from sswjax.runtime.tiles import Tiling, Window, core_of
 
 __all__ = ["BAD_INPUT", "GRAPHS", "PairJob", "PairOutcome", "graph_name", "match_carried",
@@ -87,7 +88,7 @@ def match_pair(job: PairJob, *, ndisp: int, min_disp: int, params: Params, plan:
 
 def graph_name(graph) -> tuple[str, dict]:
     """The name in :data:`GRAPHS` of a graph as :func:`sswjax.match` and its kin pass it to
-    :func:`~sswjax.runtime.plan.execute` (the bounded or jitted entry point of
+    :func:`~sswjax.runtime.execute.execute` (the bounded or jitted entry point of
     :mod:`sswjax.graph`, or a ``functools.partial`` of one), and the keyword arguments bound.
 
     Raises ``ValueError`` for another function.
@@ -120,7 +121,7 @@ def match_window(name: str, keywords: dict, left: np.ndarray, right: np.ndarray,
                  *, params: Params, call: dict, cache: str | None = None):
     """The core of one window's maps: the graph ``name`` (with ``keywords``) on the crops
     ``left, right`` float32 ``(h, w, C)`` with the keyword arguments ``call`` of
-    :func:`~sswjax.runtime.plan.graph_call`. Returns ``(window, core)``, the core NumPy
+    :func:`~sswjax.runtime.execute.graph_call`. Returns ``(window, core)``, the core NumPy
     ``(last - first, stop - start)`` maps (:func:`~sswjax.runtime.tiles.core_of`)."""
     prepare_worker(cache)
     graph = _graph(name)
@@ -136,7 +137,7 @@ def match_carried(name: str, keywords: dict, left: np.ndarray, right: np.ndarray
     """The maps of row strips with their paths carried from strip to strip
     (:func:`~sswjax.runtime.carried.in_carried_strips`): the graph ``name`` (with
     ``keywords``) on the whole pair float32 ``(H, W, C)``, a strip at a time, with the keyword
-    arguments ``call`` of :func:`~sswjax.runtime.plan.graph_call`. Returns the NumPy
+    arguments ``call`` of :func:`~sswjax.runtime.execute.graph_call`. Returns the NumPy
     ``(H, W)`` maps, as :func:`~sswjax.runtime.tiles.assemble` does."""
     prepare_worker(cache)
     graph = _graph(name)

@@ -46,7 +46,7 @@ def _aligned_right(small_left, small_right, right, params: Params, disparity, re
 
 def execute_aligned(execute: Callable, graph: Callable, left: np.ndarray, right: np.ndarray, *,
                     params: Params, ndisp: int, plan):
-    """``execute(graph, ...)`` (:func:`sswjax.runtime.plan.execute`) on the pair aligned once.
+    """``execute(graph, ...)`` (:func:`sswjax.runtime.execute.execute`) on the pair aligned once.
 
     The first pass (``params.alignment.first_pass(params)`` on the pair halved ``levels``
     times, its map and rejected pixels from :func:`~sswjax.graph.ssw_outputs`) runs under
@@ -56,7 +56,7 @@ def execute_aligned(execute: Callable, graph: Callable, left: np.ndarray, right:
     Parameters
     ----------
     execute : callable
-        :func:`sswjax.runtime.plan.execute`.
+        :func:`sswjax.runtime.execute.execute`.
     graph : callable
         A jitted function of :mod:`sswjax.graph`.
     left, right : float32 (H, W, C)

@@ -82,7 +82,7 @@ def in_carried_strips(bind: Callable[[Callable, object], Callable], graph: Calla
     bind : callable
         ``bind(function, window)``: a graph function with its parameters and keyword
         arguments bound for that :class:`~sswjax.runtime.tiles.Window`
-        (:func:`sswjax.runtime.plan.bind_graph`); called ``(left, right, seeds=)``.
+        (:func:`sswjax.runtime.execute.bind_graph`); called ``(left, right, seeds=)``.
     graph : callable
         A graph that takes ``seeds`` (:func:`takes_seeds`) and then returns
         ``(maps, carried)``.
