@@ -12,6 +12,9 @@ from sswjax import ExecutionPlan
 from sswjax.config import LeftRightCheck
 from sswjax.graph.alignment import align_right, alignment_coefficients, halved_levels
 from sswjax.graph.match import carries_paths, match_maps
+from sswjax.runtime.aligned import aligned_right, first_pass_plan
+from sswjax.runtime.execute import execute
+from sswjax.runtime.memory import STRIP_HEIGHTS, estimate_peak_bytes
 from sswjax.stages.alignment import tile_offsets
 
 HEIGHT, WIDTH, NDISP = 96, 128, 16
@@ -145,6 +148,62 @@ def test_strips_align_once_on_the_whole_pair(moved_pair):
     # The strips' first pass differs a little at the seams; the offset measured on the whole
     # pair is nearly the same, and so is the map.
     assert np.mean(np.abs(strips - whole) > 0.5) < 0.03
+
+
+def test_tiles_align_on_the_whole_pairs_first_pass():
+    """Under tiles that leave room for it, the first pass runs on the whole halved pair: the
+    right image is moved as the graph moves it. (In the tiles themselves, which cut its paths,
+    the first pass of this noisy pair moved it by up to 9e-4.)"""
+    left, right, _ = _moved_pair()
+    noise = np.random.default_rng(3)
+    left, right = (np.clip(image + noise.normal(0, 0.05, image.shape), 0, 1).astype(np.float32)
+                   for image in (left, right))
+    params = _params()
+    tiles = ExecutionPlan(tile=16, strip_overlap=8)
+    small = halved_levels(jnp.asarray(left), jnp.asarray(right), NDISP, None, 1)
+    assert first_pass_plan(left.shape, small[0].shape, ndisp=NDISP, small_ndisp=small[2],
+                           params=params, plan=tiles) == tiles._replace(tile=0)
+
+    def match(*args, **kwargs):
+        return match_maps(*args, chunk=4, **kwargs)
+
+    moved, _ = jax.jit(lambda a, b: align_right(a, b, params, NDISP, None, match))(
+        jnp.asarray(left), jnp.asarray(right))
+    np.testing.assert_allclose(
+        aligned_right(execute, left, right, params=params, ndisp=NDISP, plan=tiles), moved,
+        atol=1e-5)
+
+
+@pytest.mark.parametrize("plan, first", [
+    # The whole halved pair needs more than these tiles: its carried strips, the tiles' collar.
+    (ExecutionPlan(tile=256), ExecutionPlan(strip_rows=512)),
+    (ExecutionPlan(tile=128, strip_overlap=48), ExecutionPlan(strip_rows=384, strip_overlap=48)),
+    # Paths not carried: no strips fit, the tiles' own plan.
+    (ExecutionPlan(tile=256, carry_paths=False), ExecutionPlan(tile=256, carry_paths=False)),
+    # Tiles of 1024 leave room for the whole halved pair.
+    (ExecutionPlan(tile=1024), ExecutionPlan()),
+])
+def test_the_first_pass_plan_fits_in_the_methods(plan, first):
+    """On a 4000 x 3000 pair with 256 disparities: the first of the whole halved pair, then its
+    carried strips, whose estimate is no more than the method's under its plan."""
+    params = sswjax.preset("accurate")
+    shape, small, ndisp, small_ndisp = (3000, 4000, 3), (1500, 2000, 3), 256, 129
+    chosen = first_pass_plan(shape, small, ndisp=ndisp, small_ndisp=small_ndisp, params=params,
+                             plan=plan)
+    assert chosen == first
+    first_params = params.alignment.first_pass(params)
+
+    def estimate(trial):
+        return estimate_peak_bytes(1500, 2000, small_ndisp, params=first_params, plan=trial)
+
+    bound = estimate_peak_bytes(3000, 4000, ndisp, params=params, plan=plan)
+    if chosen != plan:
+        assert estimate(chosen) <= bound
+    # Every plan before it in the order does not fit.
+    earlier = [plan._replace(tile=0)] if chosen.tile or chosen.strip_rows else []
+    earlier += [chosen._replace(strip_rows=rows) for rows in STRIP_HEIGHTS
+                if rows > chosen.strip_rows > 0]
+    assert all(estimate(trial) > bound for trial in earlier)
 
 
 def test_an_aligned_pair_is_unchanged_when_nothing_is_off():

@@ -6,7 +6,7 @@
 ``buckets``        shape buckets: sizes rounded up so that pairs share a compiled graph
 ``tiles``          a pair matched in overlapping tiles (row strips: one column of them), stitched
 ``carried``        row strips that hand the semi-global paths on, for the whole image's maps
-``aligned``        a pair matched in windows (or by an engine) aligned once on the whole pair
+``aligned``        a pair in windows aligned once: the first pass whole, or carried, where it fits
 ``memory``         the memory model: an estimate per call, and the plan that fits (or a refusal)
 ``devices``        the 1-D device mesh a batch is split over
 ``compilation``    XLA's persistent compilation cache

@@ -1,7 +1,8 @@
 """Dask as the engine, on a real cluster of this machine: a session's LocalCluster of two spawned
 single-threaded worker processes. Folders through the cluster equal the single process bit for
 bit; a worker killed mid-run loses nothing; a bad pair is named while the others are written;
-one pair's strips or tiles are tasks; without Dask the options say what to install.
+one pair's strips or tiles are tasks (an aligned pair's first pass too); without Dask the options
+say what to install.
 
 Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair's windows are
 40 x 64 too: the workers and this process compile one graph between them.
@@ -236,6 +237,19 @@ def test_carried_strips_are_one_task_with_the_maps_of_this_process(client, textu
     restarted = sswjax.match(left, right, NDISP, params=params,
                              plan=plan._replace(carry_paths=False))
     assert np.mean(restarted != here) > 0.2
+    there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
+    assert there.tobytes() == here.tobytes()
+
+
+def test_an_aligned_pairs_tiles_are_tasks_with_the_maps_of_this_process(client, texture, cache):
+    # The alignment's first pass (on the whole halved pair, which fits where the tiles do) is a
+    # task, the right image is moved here, then the tiles are tasks: the maps of this process.
+    right = texture(11, (96, WIDTH, 3))
+    left = np.roll(right, SHIFT, axis=1)
+    plan = sswjax.ExecutionPlan(tile=32, strip_overlap=8)  # windows of 48 x 64
+    params = CHEAP.replace(alignment={"kind": "vertical", "min_pixels": 64})
+    assert params.alignment.measurable(left.shape[:2])
+    here = sswjax.match(left, right, NDISP, params=params, plan=plan)
     there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
     assert there.tobytes() == here.tobytes()
 
