@@ -100,7 +100,7 @@ engine=None, carry_paths=True)
 
 @functools.partial(jax.jit, static_argnames=("limit",))
 def _moved_right(small_left, small_right, right, params: Params, disparity, rejected, *,
-                   limit: int):
+                 limit: int):
     """``right`` (float32 (H, W, C), the full pair's) moved by the offset measured on the halved
     pair (``small_left``, ``small_right``: float32 (h, w, C)) at the first pass's ``disparity``
     (float32 (h, w)) where it was not ``rejected`` (bool (h, w)); disparities ``0 .. limit - 1``."""
