@@ -145,9 +145,11 @@ def test_strips_align_once_on_the_whole_pair(moved_pair):
     whole = sswjax.match(left, right, NDISP, params=params)
     strips = sswjax.match(left, right, NDISP, params=params,
                           plan=ExecutionPlan(strip_rows=32, strip_overlap=16))
-    # The strips' first pass differs a little at the seams; the offset measured on the whole
-    # pair is nearly the same, and so is the map.
-    assert np.mean(np.abs(strips - whole) > 0.5) < 0.03
+    # The first pass runs on the whole halved pair and the method's strips carry its paths:
+    # the whole pair's map, but for the right image moved apart from the graph (the same
+    # computation compiled apart, under 1e-6 off), which moves 1.7 % of these disparities by
+    # at most 0.025 px.
+    assert np.abs(strips - whole).max() < 0.1
 
 
 def test_tiles_align_on_the_whole_pairs_first_pass():
