@@ -241,12 +241,15 @@ def test_carried_strips_are_one_task_with_the_maps_of_this_process(client, textu
     assert there.tobytes() == here.tobytes()
 
 
-def test_an_aligned_pairs_tiles_are_tasks_with_the_maps_of_this_process(client, texture, cache):
-    # The alignment's first pass (on the whole halved pair, which fits where the tiles do) is a
-    # task, the right image is moved here, then the tiles are tasks: the maps of this process.
+def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client, texture,
+                                                                          cache):
+    # The alignment's first pass (on the whole halved pair, which fits where the windows do) is
+    # a task, the right image is moved here, then the windows are tasks: the maps of this
+    # process. (Strips of the windows the other tests compile; the tiles' first pass is chosen
+    # the same way, tests/test_alignment.py.)
     right = texture(11, (96, WIDTH, 3))
     left = np.roll(right, SHIFT, axis=1)
-    plan = sswjax.ExecutionPlan(tile=32, strip_overlap=8)  # windows of 48 x 64
+    plan = sswjax.ExecutionPlan(strip_rows=24, strip_overlap=8)  # windows of 40 x 64
     params = CHEAP.replace(alignment={"kind": "vertical", "min_pixels": 64})
     assert params.alignment.measurable(left.shape[:2])
     here = sswjax.match(left, right, NDISP, params=params, plan=plan)
