@@ -264,3 +264,16 @@ def test_a_pair_too_small_is_matched_unaligned():
     np.testing.assert_array_equal(
         sswjax.match(left, right, NDISP, params=params, plan=strips),
         sswjax.match(left, right, NDISP, params=params.replace(alignment=None), plan=strips))
+
+
+def test_the_first_pass_runs_under_the_alignments_scope():
+    # benchmarks/speed.py counts an operation under its outermost stage: the first pass's paths
+    # are the alignment's time, not the method's (docs/limits.md). Only the first pass runs
+    # paths inside the alignment, so before its stages were nested there, none were found.
+    left, right, _ = _moved_pair(160, 200)
+    text = sswjax.graph.ssw_disparity.lower(
+        jnp.asarray(left), jnp.asarray(right), sswjax.preset("accurate"),
+        ndisp=NDISP).as_text(debug_info=True)
+    assert "/alignment/optimization/" in text
+    assert "/alignment/cost/" in text
+    assert "/optimization/" in text.replace("/alignment/optimization/", "")
