@@ -1,6 +1,6 @@
 """The pure helpers of benchmarks/top_ops.py (a stage's wall time from a trace),
-benchmarks/graph_ab.py (a function as a commit defines it) and benchmarks/front.py (where the
-plot's labels go)."""
+benchmarks/graph_ab.py (a function as a commit defines it), benchmarks/front.py (where the
+plot's labels go) and benchmarks/compile_kernels.py (kernel times from XLA's log)."""
 
 import subprocess
 import sys
@@ -12,6 +12,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
 
+import compile_kernels  # noqa: E402
 import front  # noqa: E402
 import graph_ab  # noqa: E402
 import top_ops  # noqa: E402
@@ -59,3 +60,22 @@ def test_a_function_as_a_commit_defines_it():
     repeated = found["repeated"]
     assert repeated.__module__ == "sswjax.stages.loops@HEAD"
     assert float(repeated(lambda x: x * 2.0, jnp.float32(1.0), times=3)) == 8.0
+
+
+def test_kernel_times_are_read_from_xlas_verbose_log():
+    # Lines as jaxlib 0.10.2's XLA CPU writes them, with other lines between.
+    log = "\n".join([
+        "I1207 06:05:43.156926 30575 ir_compiler.cc:293] Compiled LLVM module: "
+        "__compute_module_multiply_divide_fusion.1_kernel_module time: 39.9 ms (39944 us) "
+        "(cumulative: 5.56 s, max: 157 ms, #called: 356)",
+        "I1207 06:05:43.160000 30575 hlo_pass_pipeline.cc:176] HLO pass: dce time: 4 ms",
+        "I1207 06:05:43.300734 30575 ir_compiler.cc:293] Compiled LLVM module: "
+        "__compute_module___compute_module_wrapped_multiply time: 368 us (368 us) "
+        "(cumulative: 5.83 s, max: 157 ms, #called: 375)",
+        "I1207 06:05:43.602436 30575 cpu_compiler.cc:2094] Compiling [jit_ssw_disparity] for "
+        "CPU using JIT time: 5.54 s (5537914 us) (cumulative: 5.54 s, max: 5.54 s, #called: 1)",
+    ])
+    kernels, total = compile_kernels.kernel_times(log)
+    assert kernels == pytest.approx([0.0399, 0.000368])
+    assert total == pytest.approx(5.54)
+    assert compile_kernels.kernel_times("no XLA log here") == ([], None)
