@@ -8,6 +8,10 @@ For each preset, in new Python processes (nothing shared with this one but the f
    then warm with the trace only (``SSWJAX_STORE_EXECUTABLES=0``: the stored trace lowered and
    the executable found in XLA's cache), and in a fresh folder after ``sswjax warmup --like
    LEFT``.
+   Beside them, once per run, the **floor**: a new process that only imports the command line
+   (``sswjax.cli.app``, what ``sswjax match`` imports) and brings up JAX's CPU backend (one
+   array made), timed from outside. Every CLI call pays it before it reads a pair; a first
+   call can be no faster than the floor plus the graph's warm run.
 2. The same pair through the API's stored graph (:mod:`sswjax.runtime.stored`), the phases
    timed inside the process: ``import sswjax``, tracing the graph (empty cache) or loading its
    stored executable (warm: then nothing is lowered or compiled, 0 in those columns) or trace
@@ -91,6 +95,19 @@ def child_environment(cache: Path, executables: bool = True) -> dict[str, str]:
            "SSWJAX_STORE_EXECUTABLES": "1" if executables else "0"}
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
+
+
+_FLOOR = ("import sswjax.cli.app, jax.numpy as jnp; "
+          "jnp.zeros(1).block_until_ready()")
+
+
+def floor_seconds(cache: Path) -> float:
+    """Wall time of a new process that imports the command line and brings up JAX's CPU
+    backend, nothing else: what every ``sswjax`` call costs before its work."""
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-c", _FLOOR], env=child_environment(cache), check=True,
+                   capture_output=True)
+    return time.perf_counter() - start
 
 
 def warmup_seconds(left: Path, ndisp: int, preset: str, cache: Path) -> float:
@@ -179,8 +196,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as cache:  # the bytecode cache written before timing
         subprocess.run([sys.executable, "-c", "import sswjax.cli.match, sswjax.cli.warmup"],
                        env=child_environment(Path(cache)), check=True)
-    rows = [row for preset in args.presets
-            for row in measure(left, right, ndisp, preset, args.repeat)]
+    with tempfile.TemporaryDirectory() as cache:
+        floor = [floor_seconds(Path(cache)) for _ in range(args.repeat)]
+    rows = [{"preset": "any", "surface": "CLI", "cache": "floor: import and backend only",
+             "total": spread(floor)}]
+    print(rows[0], flush=True)
+    rows += [row for preset in args.presets
+             for row in measure(left, right, ndisp, preset, args.repeat)]
     keys = ["preset", "surface", "cache", *PHASES, "total"]
     header = "| " + " | ".join(keys) + " |\n|" + "---|" * len(keys) + "\n"
     table = (f"First call on trainingQ {args.scene} ({ndisp} disparities), fresh processes, "
