@@ -115,8 +115,15 @@ def test_plans_with_tiles_are_checked():
         check_plan(ExecutionPlan(tile=64, strip_rows=32))
     with pytest.raises(ValueError, match="plan.tile must be an integer in"):
         check_plan(ExecutionPlan(tile=-1))
-    with pytest.raises(TypeError, match="plan.engine must be None or have an execute method"):
+    with pytest.raises(TypeError, match="plan.engine must be None or have execute, session an"):
         check_plan(ExecutionPlan(engine="dask"))
+
+    class ExecuteOnly:  # an engine without the session and fit an aligned pair needs
+        def execute(self, *args, **kwargs):
+            raise AssertionError("not called")
+
+    with pytest.raises(TypeError, match="got ExecuteOnly"):
+        check_plan(ExecutionPlan(engine=ExecuteOnly()))
 
 
 # The memory guard's choices below were measured (docs/cluster.md) on accurate before its

@@ -29,6 +29,7 @@ from sswjax._files import first_line
 from sswjax.api.match import match, match_with_confidence
 from sswjax.cluster.tasks import graph_name, match_carried, match_window
 from sswjax.cluster.workers import require_distributed, worker_memory
+from sswjax.runtime.buckets import bucket_shape
 from sswjax.runtime.carried import carried_strips
 from sswjax.runtime.execute import graph_call
 from sswjax.runtime.memory import plan_for_memory
@@ -86,6 +87,32 @@ class DaskEngine:
         if self.client is not None:
             return contextlib.nullcontext(self.client)
         return self.connect()
+
+    @contextlib.contextmanager
+    def session(self):
+        """This engine for every call of one pair on one cluster (an aligned pair's first pass,
+        then its windows): itself when it holds a client; else an engine of the same settings
+        holding the client that ``connect`` gives for the block, so that the cluster it starts
+        is started once per pair, not once per call."""
+        if self.client is not None:
+            yield self
+            return
+        with self.connect() as client:
+            yield DaskEngine(client, cache=self.cache, retries=self.retries,
+                             progress=self.progress, in_flight=self.in_flight,
+                             check_memory=self.check_memory, memory_limit=self.memory_limit)
+
+    def fit(self, left, right, *, params, ndisp: int, plan: ExecutionPlan) -> ExecutionPlan:
+        """The plan (without its engine) whose windows :meth:`execute` would run as tasks for
+        these arguments: the windows that fit a worker. Raises the memory guard's
+        ``MemoryEstimateError`` when the plan's own windows do not, before any task: an
+        aligned pair asks it before its first pass runs."""
+        height, width, channels = left.shape
+        call_ndisp = int(ndisp)
+        if plan.buckets is not None:
+            height, width, call_ndisp = bucket_shape(height, width, call_ndisp, plan.buckets)
+        with self._session() as client:
+            return self._fitted(client, (height, width, channels), call_ndisp, params, plan)
 
     def execute(self, graph, left, right, *, params, ndisp: int, plan: ExecutionPlan):
         """:func:`sswjax.runtime.execute.execute` with each window a task (its arguments and

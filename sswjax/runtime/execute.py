@@ -91,8 +91,16 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
         # without the alignment (in strips, as such a method carries its paths).
         params = params.replace(alignment=None)
     if aligned_separately(params, plan):
-        return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
-                               plan=plan)
+        if plan.engine is None:
+            return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
+                                   plan=plan)
+        # One session of the engine for the first pass and the windows, and the windows
+        # fitted to its workers (or refused) before the first pass runs.
+        with plan.engine.session() as engine:
+            engine.fit(left, right, params=params.replace(alignment=None), ndisp=ndisp,
+                       plan=plan._replace(engine=None))
+            return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
+                                   plan=plan._replace(engine=engine))
     if plan.engine is not None:
         return plan.engine.execute(graph, left, right, params=params, ndisp=ndisp,
                                    plan=plan._replace(engine=None))

@@ -11,6 +11,7 @@ Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import subprocess
@@ -19,6 +20,7 @@ import threading
 import time
 
 import imageio.v3 as iio
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -26,10 +28,12 @@ distributed = pytest.importorskip("distributed")
 
 import sswjax
 from sswjax.cli.distributed import cluster_session
-from sswjax.cluster import PairJob, match_folder, match_pairs, match_tiles
+from sswjax.cluster import DaskEngine, PairJob, match_folder, match_pairs, match_tiles
 from sswjax.cluster.cores import usable_cores
 from sswjax.cluster.workers import PINNED_FLAGS, pin_workers, worker_environment
 from sswjax.data.io import read_image, read_pfm
+from sswjax.graph.alignment import halved_levels
+from sswjax.runtime.memory import MemoryEstimateError, worker_peak_bytes
 
 HEIGHT, WIDTH, NDISP, SHIFT = 40, 64, 8, 3
 CHEAP = sswjax.Params().replace(segments=None, aggregation={"kind": "box", "radius": 1})
@@ -255,6 +259,52 @@ def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client
     here = sswjax.match(left, right, NDISP, params=params, plan=plan)
     there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
     assert there.tobytes() == here.tobytes()
+
+
+def _aligned_pair(texture):
+    """A 96 x 64 pair whose offset the cheap method can measure, and strips of 40 x 64."""
+    right = texture(11, (96, WIDTH, 3))
+    params = CHEAP.replace(alignment={"kind": "vertical", "min_pixels": 64})
+    assert params.alignment.measurable(right.shape[:2])
+    return np.roll(right, SHIFT, axis=1), right, params, sswjax.ExecutionPlan(strip_rows=24,
+                                                                              strip_overlap=8)
+
+
+def test_an_aligned_pair_starts_its_engines_cluster_once(cluster, texture, cache):
+    # The command line's engine connects per session (it starts a cluster for its pair): the
+    # first pass and the windows share one, with the maps of this process.
+    opened = []
+
+    @contextlib.contextmanager
+    def connect():
+        with distributed.Client(cluster) as client:
+            opened.append(client)
+            yield client
+
+    left, right, params, plan = _aligned_pair(texture)
+    here = sswjax.match(left, right, NDISP, params=params, plan=plan)
+    engine = DaskEngine(connect=connect, cache=cache)
+    there = sswjax.match(left, right, NDISP, params=params, plan=plan._replace(engine=engine))
+    assert len(opened) == 1
+    assert there.tobytes() == here.tobytes()
+
+
+def test_windows_too_large_for_a_worker_are_refused_before_the_first_pass_runs(client, texture,
+                                                                               cache):
+    left, right, params, plan = _aligned_pair(texture)
+    limit = worker_peak_bytes(*left.shape[:2], NDISP, params=params.replace(alignment=None),
+                              plan=plan) - 1
+    small, _, small_ndisp, _, _ = halved_levels(jnp.asarray(left / 255.0, jnp.float32),
+                                                jnp.asarray(right / 255.0, jnp.float32), NDISP,
+                                                None, params.alignment.levels)
+    first = worker_peak_bytes(*small.shape[:2], small_ndisp,
+                              params=params.alignment.first_pass(params))
+    assert first <= limit  # the first pass alone fits a worker: it would run, then the refusal
+    engine = DaskEngine(client, cache=cache, memory_limit=limit)
+    with distributed.get_task_stream(client) as stream:
+        with pytest.raises(MemoryEstimateError, match="more than the limit"):
+            sswjax.match(left, right, NDISP, params=params, plan=plan._replace(engine=engine))
+    assert stream.data == []
 
 
 NO_DASK = r"""
