@@ -1,8 +1,9 @@
 """Dask as the engine, on a real cluster of this machine: a session's LocalCluster of two spawned
 single-threaded worker processes. Folders through the cluster equal the single process bit for
 bit; a worker killed mid-run loses nothing; a bad pair is named while the others are written;
-one pair's strips or tiles are tasks (an aligned pair's first pass too); without Dask the options
-say what to install.
+one pair's strips or tiles are tasks (an aligned pair's first pass too, in the same session of
+the engine, after its windows are fitted to the workers); without Dask the options say what to
+install.
 
 Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair's windows are
 40 x 64 too: the workers and this process compile one graph between them.
@@ -245,22 +246,6 @@ def test_carried_strips_are_one_task_with_the_maps_of_this_process(client, textu
     assert there.tobytes() == here.tobytes()
 
 
-def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client, texture,
-                                                                          cache):
-    # The alignment's first pass (on the whole halved pair, which fits where the windows do) is
-    # a task, the right image is moved here, then the windows are tasks: the maps of this
-    # process. (Strips of the windows the other tests compile; the tiles' first pass is chosen
-    # the same way, tests/test_alignment.py.)
-    right = texture(11, (96, WIDTH, 3))
-    left = np.roll(right, SHIFT, axis=1)
-    plan = sswjax.ExecutionPlan(strip_rows=24, strip_overlap=8)  # windows of 40 x 64
-    params = CHEAP.replace(alignment={"kind": "vertical", "min_pixels": 64})
-    assert params.alignment.measurable(left.shape[:2])
-    here = sswjax.match(left, right, NDISP, params=params, plan=plan)
-    there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
-    assert there.tobytes() == here.tobytes()
-
-
 def _aligned_pair(texture):
     """A 96 x 64 pair whose offset the cheap method can measure, and strips of 40 x 64."""
     right = texture(11, (96, WIDTH, 3))
@@ -268,6 +253,18 @@ def _aligned_pair(texture):
     assert params.alignment.measurable(right.shape[:2])
     return np.roll(right, SHIFT, axis=1), right, params, sswjax.ExecutionPlan(strip_rows=24,
                                                                               strip_overlap=8)
+
+
+def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client, texture,
+                                                                          cache):
+    # The alignment's first pass (on the whole halved pair, which fits where the windows do) is
+    # a task, the right image is moved here, then the windows are tasks: the maps of this
+    # process. (Strips of the windows the other tests compile; the tiles' first pass is chosen
+    # the same way, tests/test_alignment.py.)
+    left, right, params, plan = _aligned_pair(texture)
+    here = sswjax.match(left, right, NDISP, params=params, plan=plan)
+    there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
+    assert there.tobytes() == here.tobytes()
 
 
 def test_an_aligned_pair_starts_its_engines_cluster_once(cluster, texture, cache):
