@@ -30,7 +30,8 @@ from sswjax._files import same_file
 from sswjax.data.io import FLOAT_MAP_SUFFIXES, write_disparity_png, write_float_map
 from sswjax.data.scaled import write_scaled_disparity
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "check_output_files",
+__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "PNG_DISPARITIES",
+           "check_output_files", "check_range_formats",
            "check_outputs", "command_line", "compile_notes", "disparity_writers", "gigabytes", "HelpFormatter",
            "interrupt_flag", "Interrupted", "Parser", "raise_if_interrupted",
            "remembered_interrupts", "resume_command", "uninterrupted",
@@ -52,6 +53,11 @@ OUTPUT_FORMATS: dict[str, tuple[tuple[str, ...], str]] = {
 }
 """Option of ``sswjax match`` -> the file name endings it writes (any case), and their words
 (the ``formats`` of :func:`check_outputs`)."""
+
+PNG_DISPARITIES = (0, 255)
+"""The searched disparities KITTI's 16-bit PNG (``-o d.png``, ``--kitti-png``) holds:
+``round(d * 256)`` in 1..65535, 0 = invalid, so 0 to 255.99 px: a search from 0 up to at most
+255. A negative disparity, or one past 255.99, would be written 0 (invalid)."""
 
 EXIT_USAGE = 2
 """Exit status of bad input (argparse's own convention)."""
@@ -298,6 +304,33 @@ def check_outputs(outputs: Mapping[str, Path | None],
         if suffixes and path.suffix.lower() not in suffixes:
             found = f"unsupported extension '{path.suffix}'" if path.suffix else "no extension"
             raise ValueError(f"{option} {path}: {found}; {option} writes {words}")
+
+
+def check_range_formats(outputs: Mapping[str, Path | None], min_disp: int, ndisp: int) -> None:
+    """Fail before matching if a 16-bit PNG map (``-o d.png``, ``--kitti-png``) cannot hold the
+    searched disparities ``min_disp .. min_disp + ndisp - 1`` (:data:`PNG_DISPARITIES`): it
+    would write 0 (invalid) where the map has values, and the range is known before the run.
+    Other options and formats (the float maps, the colour ``--png``) take any range.
+
+    Raises ``ValueError`` (one line naming the option and a format that holds the range).
+
+    Examples
+    --------
+    >>> check_range_formats({"-o": Path("neg.png")}, -80, 64)
+    Traceback (most recent call last):
+    ...
+    ValueError: -o neg.png: a 16-bit PNG holds disparities 0 to 255.99 (round(d * 256), 0 = invalid), and this run searches -80..-17: write the map as .pfm, .npy or .tif (float32), which hold any disparity
+    """
+    low, high = int(min_disp), int(min_disp) + int(ndisp) - 1
+    if ndisp < 1 or PNG_DISPARITIES[0] <= low and high <= PNG_DISPARITIES[1]:
+        return  # a bad ndisp is the matcher's to report
+    advice = {"-o": "write the map as .pfm, .npy or .tif (float32), which hold any disparity",
+              "--kitti-png": "write the map with -o OUT.pfm (.npy, .tif) instead"}
+    for option, path in outputs.items():
+        if option in advice and path is not None and Path(path).suffix.lower() == ".png":
+            raise ValueError(f"{option} {path}: a 16-bit PNG holds disparities 0 to 255.99 "
+                             f"(round(d * 256), 0 = invalid), and this run searches "
+                             f"{low}..{high}: {advice[option]}")
 
 
 def write_disparity_map(path: Path, disparity: np.ndarray, *, suffix: str) -> None:

@@ -31,8 +31,8 @@ from sswjax._files import atomic_outputs
 from sswjax.api.auto_range import estimate_range
 from sswjax.api.match import match, match_with_confidence
 from sswjax.api.rectify import rectification, rectified_calibration
-from sswjax.cli.common import (OUTPUT_FORMATS, check_outputs, compile_notes, disparity_writers,
-                               gigabytes)
+from sswjax.cli.common import (OUTPUT_FORMATS, check_outputs, check_range_formats, compile_notes,
+                               disparity_writers, gigabytes)
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
 from sswjax.cli.distributed import cluster_plan
@@ -110,6 +110,23 @@ def _check_range_options(args: argparse.Namespace) -> None:
         raise ValueError("--min-disp goes with --ndisp N: --depth-range and --ndisp auto set it")
 
 
+def _check_range_outputs(outputs: dict, calib, min_disp: int, ndisp: int) -> None:
+    """Fail before matching if an output cannot hold the searched range: a 16-bit PNG map
+    (:func:`~sswjax.cli.common.check_range_formats`), or ``--depth`` / ``--ply`` when every
+    disparity searched has ``d + doffs <= 0`` (no pixel would have a depth; ``calib`` None:
+    not known yet)."""
+    check_range_formats(outputs, min_disp, ndisp)
+    high = min_disp + ndisp - 1
+    if calib is None or ndisp < 1 or high + calib.doffs > 0:
+        return
+    for option in ("--depth", "--ply"):
+        if outputs.get(option) is not None:
+            raise ValueError(f"{option} {outputs[option]}: this run searches disparities "
+                             f"{min_disp}..{high}, and depth baseline * f / (d + doffs) needs "
+                             f"d + doffs > 0 (doffs {calib.doffs:g}): no pixel would have a "
+                             "depth")
+
+
 def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) -> ExecutionPlan:
     """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
     is for folders; the pair (sizes from the headers) must fit in memory, in strips if it must.
@@ -177,6 +194,8 @@ def run_match(args: argparse.Namespace) -> int:
     check_outputs(outputs, inputs, formats={**OUTPUT_FORMATS, **CLOUD_FORMATS,
                                                       **depth_formats(args)})
     calib = calibration(args)
+    if isinstance(args.ndisp, int):  # the range is known: refused before anything runs
+        _check_range_outputs(outputs, calib, args.min_disp, args.ndisp)
     params, execution = params_from_args(args)
     plan = guard_pair(args, params, plan_from_args(args, execution))
     plan = cluster_plan(args, plan)  # --workers / --scheduler: the tiles are tasks
@@ -193,6 +212,8 @@ def run_match(args: argparse.Namespace) -> int:
             pair, calib = rectified(stereo, raw_left, raw_right, alpha=args.alpha)
             left, right = pair.left, pair.right
         min_disp, ndisp = _search(args, calib, left, right)
+        if not isinstance(args.ndisp, int) or stereo is not None:  # known now, before matching
+            _check_range_outputs(outputs, calib, min_disp, ndisp)
         if not isinstance(args.ndisp, int) or stereo is not None:
             plan = guard_memory([(*left.shape[:2], 1 if left.ndim == 2 else 3)], ndisp,
                                 params=params, plan=plan, limit_gb=args.max_memory,
