@@ -1,7 +1,7 @@
 """The parameter options and the execution-plan options of the commands.
 
-Parameters: ``--preset NAME`` or ``--params FILE`` (not both; default the ``accurate``
-preset), then every ``--set PATH=VALUE`` in order, through :meth:`sswjax.config.Params.replace`:
+Parameters: ``--preset NAME`` (default the ``accurate`` preset) and ``--params FILE``, which
+fills what it leaves out from the preset, then every ``--set PATH=VALUE`` in order, through :meth:`sswjax.config.Params.replace`:
 ``PATH`` a stage (the value a kind name, or ``none`` / ``null`` to turn an optional stage off;
 a JSON object sets several options) or ``stage.option``; ``VALUE`` is read as JSON when it
 parses (numbers, ``true``, ``false``, ``null``), else as text. The result is validated with
@@ -98,14 +98,15 @@ def _set_help() -> str:
 
 def add_parameter_options(parser: argparse.ArgumentParser, what: str = "the") -> None:
     """Add ``--preset NAME`` | ``--params FILE`` and the repeatable ``--set PATH=VALUE``."""
-    group = parser.add_mutually_exclusive_group()
+    group = parser  # both: --preset fills what --params leaves out
     presets = "; ".join(f"{name}: {entry.summary}" for name, entry in PRESETS.items())
     group.add_argument("--preset", choices=list(PRESETS),
                        help=_escape(f"{what} parameters by name (default: {DEFAULT_PRESET}). "
                                     f"{presets}"))
     group.add_argument("--params", type=Path, metavar="FILE",
                        help=f"{what} parameters from a JSON file (sswjax params -o FILE writes "
-                            "one to edit)")
+                            "one to edit); what the file leaves out comes from --preset "
+                            f"(default: {DEFAULT_PRESET})")
     parser.add_argument("--set", action="append", default=[], type=setting,
                         metavar="PATH=VALUE", dest="settings", help=_set_help())
 
@@ -174,16 +175,17 @@ def _applied(params: Params, path: str, value) -> Params:
 def params_from_args(args: argparse.Namespace) -> tuple[Params, dict]:
     """The parameters a command asked for and the execution options of its file.
 
-    ``--params FILE`` (:func:`sswjax.config.read_params_file`; old flat files may hold
-    ``strip_rows``, ``strip_overlap``, ``disparity_chunk``), else ``--preset NAME``, else the
-    default preset; then the ``--set`` changes.
+    ``--params FILE`` (:func:`sswjax.config.read_params_file`, what it leaves out from
+    ``--preset NAME`` or the default preset; old flat files may hold ``strip_rows``,
+    ``strip_overlap``, ``disparity_chunk``), else ``--preset NAME``, else the default preset;
+    then the ``--set`` changes.
 
     Returns
     -------
     (Params, dict execution option -> value)
     """
     if getattr(args, "params", None) is not None:
-        params, execution = read_params_file(args.params)
+        params, execution = read_params_file(args.params, base=getattr(args, "preset", None))
     else:
         name = getattr(args, "preset", None)
         params, execution = (default_params() if name is None else preset(name)), {}

@@ -1,6 +1,6 @@
 """``sswjax params``: the parameters as nested JSON, and the catalogue of every stage.
 
-``sswjax params [--preset NAME | --params FILE] [--set PATH=VALUE ...] [-o FILE]`` prints (or
+``sswjax params [--preset NAME] [--params FILE] [--set PATH=VALUE ...] [-o FILE]`` prints (or
 writes atomically, :func:`sswjax.config.save_params`) the parameters those options give, in
 the nested form that ``--params FILE`` reads back: a file to edit. ``sswjax params --list``
 prints every stage (slot) in pipeline order with its kinds (the registered part classes) and
@@ -84,9 +84,12 @@ def catalogue() -> str:
 
 
 def _provenance(args: argparse.Namespace) -> dict:
-    """Where the parameters came from: the preset or file, and the ``--set`` changes."""
-    source = ({"params": str(args.params)} if args.params is not None
-              else {"preset": args.preset or DEFAULT_PRESET})
+    """Where the parameters came from: the preset, the file (on the preset when one is given),
+    and the ``--set`` changes."""
+    source = ({"params": str(args.params)} if args.params is not None else
+              {"preset": args.preset or DEFAULT_PRESET})
+    if args.params is not None and args.preset is not None:
+        source["preset"] = args.preset
     settings = [f"{path}={value if isinstance(value, str) else json.dumps(value)}"
                 for path, value in args.settings]
     return {**source, **({"set": settings} if settings else {}), "written_by": "sswjax params"}

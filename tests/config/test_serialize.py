@@ -27,9 +27,13 @@ def test_json_round_trip_of_every_preset(tmp_path, name):
 def test_a_partial_file_starts_from_its_preset():
     p = params_from_dict({"preset": "accurate", "optimizer": {"p2": 1.3}, "fill": {"radius": 5}})
     assert p == preset("accurate").replace(**{"optimizer.p2": 1.3, "fill.radius": 5})
-    q = params_from_dict({"fill": {"kind": "vote", "step": 2}})  # from the paper's method
-    assert q == Params().replace(fill=VoteFill(step=2))
-    assert params_from_dict({}) == Params()
+    q = params_from_dict({"fill": {"kind": "vote", "step": 2}}, base="paper")
+    assert q == Params().replace(fill=VoteFill(step=2))  # another kind: from its defaults
+    assert params_from_dict({}, base="paper") == Params()
+    # without a base: the default preset (accurate), whose fill is a vote already
+    assert params_from_dict({}) == preset("accurate")
+    assert params_from_dict({"fill": {"kind": "vote", "step": 2}}) == \
+        preset("accurate").replace(**{"fill.step": 2})
     r = params_from_dict({"optimizer": {"kind": "sgm", "p2": 2}})  # JSON integer, traced: a float
     assert r.optimizer.p2 == 2.0 and isinstance(r.optimizer.p2, float)
 
