@@ -353,6 +353,18 @@ def test_bad_set_one_line_exit_2(pair, run_cli, tmp_path, setting, message):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("typed, got", [
+    ("optimizer.p2=1e400", "inf"),      # beyond float64: JSON reads it as infinity
+    ("optimizer.p2=1e39", "1e+39"),     # beyond float32
+    ('optimizer={"kind": "sgm", "p2": -1e400}', "-inf"),
+])
+def test_set_echoes_a_number_beyond_float32_as_typed(run_cli, typed, got):
+    code, out, err = run_cli(["params", "--set", typed])
+    assert (code, out) == (2, "")
+    assert err == (f"sswjax: error: --set {typed}: parameter optimizer.p2 must be finite in "
+                   f"float32 (the graph's dtype), got {got}\n")
+
+
 def test_set_reaches_the_matcher(pair, tmp_path, run_cli):
     out = tmp_path / "d.pfm"
     code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,

@@ -54,9 +54,16 @@ def _escape(text: str) -> str:
     return text.replace("%", "%%")
 
 
+class _Setting(tuple):
+    """One ``--set``'s ``(PATH, value)``; ``text`` is the ``PATH=VALUE`` typed, which its
+    errors echo (JSON reads ``1e400`` as infinity)."""
+
+    text: str
+
+
 def setting(text: str) -> tuple[str, object]:
     """argparse type of ``--set``: ``"PATH=VALUE"`` -> ``(PATH, value)``, the value read as
-    JSON when it parses, else the text itself.
+    JSON when it parses, else the text itself (the text typed kept for the errors).
 
     Examples
     --------
@@ -69,9 +76,11 @@ def setting(text: str) -> tuple[str, object]:
         raise argparse.ArgumentTypeError(f"expected PATH=VALUE (a stage or stage.option), "
                                          f"got {text!r}")
     try:
-        return path, json.loads(value)
+        parsed = _Setting((path, json.loads(value)))
     except ValueError:
-        return path, value
+        parsed = _Setting((path, value))
+    parsed.text = text
+    return parsed
 
 
 def _set_help() -> str:
@@ -139,8 +148,11 @@ def apply_settings(params: Params, settings: Sequence[tuple[str, object]]) -> Pa
     >>> p.fill.kind, p.optimizer.p2
     ('background', 1.0)
     """
-    for path, value in settings:
-        where = f"--set {path}={json.dumps(value) if not isinstance(value, str) else value}"
+    for item in settings:
+        path, value = item
+        typed = getattr(item, "text", None)  # what the user typed, from the command line
+        where = f"--set {typed}" if typed is not None else \
+            f"--set {path}={json.dumps(value) if not isinstance(value, str) else value}"
         if path in EXECUTION_DEFAULTS:
             raise ConfigError(path, f"{where}: {path} is how a call runs, not a parameter: "
                               f"use {PLAN_OPTIONS[path]} of sswjax match")
