@@ -217,3 +217,35 @@ def test_evaluate_bad_folder(tmp_path, run_cli, middeval3, damage, extra, messag
     code, out, err = run_cli(["evaluate", "--data", root, "--methods", "ssw", *extra])
     _assert_one_line_error(code, err, message.format(s=scene))
     assert out == ""  # failed before any scene was run
+
+
+# ----------------------------------------------------------------------------- the reader goes away
+
+
+def _reader_stops_after_one_line(argv: list[str]) -> tuple[bytes, subprocess.CompletedProcess]:
+    """Run ``python -m sswjax.cli ARGV`` with stdout a real pipe of 4 KiB (fewer bytes than the
+    command prints, so that it is still writing), read one line and close the pipe, as
+    ``| head -1`` does. Returns the line read and the process (its stderr captured)."""
+    import fcntl
+
+    read_end, write_end = os.pipe()
+    fcntl.fcntl(write_end, fcntl.F_SETPIPE_SZ, 4096)
+    env = {name: value for name, value in os.environ.items() if name != "PYTHONUNBUFFERED"}
+    process = subprocess.Popen(CLI + argv, stdout=write_end, stderr=subprocess.PIPE, env=env)
+    os.close(write_end)
+    with os.fdopen(read_end, "rb", buffering=0) as pipe:
+        line = b""
+        while not line.endswith(b"\n"):
+            line += pipe.read(1)
+    err = process.communicate(timeout=120)[1]
+    return line, subprocess.CompletedProcess(process.args, process.returncode, None, err)
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly():
+    """``sswjax params --list | head -1``: the first line, then nothing on stderr and status 141
+    (128 + SIGPIPE, what ``yes | head -1`` reports to the shell), not ``sswjax: error: [Errno 32]
+    Broken pipe`` with status 2. (The catalogue, 17 kB, is longer than the pipe.)"""
+    line, run = _reader_stops_after_one_line(["params", "--list"])
+    assert line.startswith(b"Stages in pipeline order"), line
+    assert run.stderr == b"", run.stderr.decode()
+    assert run.returncode == 141

@@ -5,7 +5,9 @@ Errors in the user's input (files, sizes, parameters, memory) print one line on 
 exit with status 2; ``--debug`` shows the traceback instead. Every output is written to a
 temporary file and renamed into place, so an existing file survives a failed run. Ctrl-C exits
 with status 130; ``sswjax evaluate -o DIR`` writes each scene as soon as it is done, and its
-``--resume`` continues an interrupted run without recomputing the finished scenes.
+``--resume`` continues an interrupted run without recomputing the finished scenes. A reader
+that stops early (``sswjax params --list | head -1``) ends the command quietly with status 141,
+as a tool killed by ``SIGPIPE`` reports to the shell (:data:`EXIT_BROKEN_PIPE`).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
+import os
 import sys
 
 from sswjax._files import first_line
@@ -21,11 +24,17 @@ from sswjax.cli.common import (EXIT_INTERRUPTED, EXIT_USAGE, Interrupted, Parser
 from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
 from sswjax.runtime.memory import MemoryEstimateError
 
-__all__ = ["COMMANDS", "USER_ERRORS", "build_parser", "commands_needed", "console", "main"]
+__all__ = ["COMMANDS", "EXIT_BROKEN_PIPE", "USER_ERRORS", "build_parser", "commands_needed", "console", "main"]
 
 USER_ERRORS = (ValueError, OSError, MemoryEstimateError)
 """What bad input raises (``ConfigError`` and ``InputError`` are ``ValueError``\\ s): one line,
 exit status 2. Anything else is a bug and shows its traceback."""
+
+
+EXIT_BROKEN_PIPE = 141
+"""Exit status when the reader of standard output went away (``| head -1``): 128 + SIGPIPE,
+what ``yes | head -1`` or ``git log | head -1`` report to the shell, rather than 0: what was
+printed is not all of it, and ``set -o pipefail`` sees the same as with any such tool."""
 
 
 COMMANDS = ("match", "demo", "evaluate", "download", "params", "rectify", "search", "warmup")
@@ -68,7 +77,8 @@ def build_parser(commands: tuple[str, ...] = COMMANDS) -> argparse.ArgumentParse
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status (0, 2 for bad input, 130 on Ctrl-C).
+    """Run the command line; return the exit status (0, 2 for bad input, 130 on Ctrl-C, 141
+    when the reader of standard output went away).
 
     Examples
     --------
@@ -82,7 +92,11 @@ def main(argv: list[str] | None = None) -> int:
     cache = None if args.no_cache else enable_compilation_cache()
     try:
         with repairing_cache(cache), remembered_interrupts():
-            return args.run(args)
+            status = args.run(args)
+            sys.stdout.flush()  # a reader gone shows here, not in Python's exit
+            return status
+    except BrokenPipeError:
+        return _reader_gone()
     except USER_ERRORS as error:
         if args.debug:
             raise
@@ -92,6 +106,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sswjax: {interrupt if isinstance(interrupt, Interrupted) else 'interrupted'}",
               file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+def _reader_gone() -> int:
+    """Standard output's reader went away: what is still buffered for it goes to the null
+    device (else Python's exit tries again, and prints an error), and nothing is said.
+    Returns :data:`EXIT_BROKEN_PIPE`."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, sys.stdout.fileno())
+    except (OSError, ValueError):  # a stdout without a descriptor (captured): nothing to drop
+        pass
+    finally:
+        os.close(null)
+    return EXIT_BROKEN_PIPE
 
 
 def console() -> int:
