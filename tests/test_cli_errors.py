@@ -249,3 +249,79 @@ def test_a_reader_that_stops_early_ends_the_command_quietly():
     assert line.startswith(b"Stages in pipeline order"), line
     assert run.stderr == b"", run.stderr.decode()
     assert run.returncode == 141
+
+
+# ----------------------------------------------------------------------------- what --help claims
+
+
+def _option_help(command: str, option: str) -> str:
+    """The help of ``option`` in ``sswjax COMMAND --help``, as one line."""
+    from sswjax.cli.app import build_parser
+
+    parser = build_parser((command,))
+    sub = next(action for action in parser._actions if action.dest == "command").choices[command]
+    action = next(action for action in sub._actions if option in action.option_strings)
+    return " ".join(action.help.replace("%%", "%").split())
+
+
+@pytest.mark.parametrize("command", ["match", "params"])
+def test_the_set_examples_of_the_help_run_on_the_default_preset(command, run_cli, tmp_path):
+    """Each ``--set`` example the help gives (``e.g. A, B.``) is accepted as written, on the
+    default preset: a user who copies one gets a run, not an error."""
+    text = _option_help(command, "--set")
+    examples = text.split("e.g. ", 1)[1].split(". ", 1)[0].split(", ")
+    assert len(examples) >= 2 and all("=" in example for example in examples), text
+    for example in examples:
+        code, _, err = run_cli(["params", "--set", example, "-o", tmp_path / "p.json"])
+        assert code == 0, f"--set {example}: {err}"
+
+
+def test_a_fill_that_needs_segments_says_how_to_turn_them_on(run_cli):
+    code, out, err = run_cli(["params", "--set", "fill=plane"])
+    _assert_one_line_error(code, err, "fill 'plane' fits a plane per superpixel: it needs "
+                                      "segments (--set segments=slic)")
+    code, out, err = run_cli(["params", "--set", "fill=plane", "--set", "segments=slic"])
+    assert code == 0 and '"kind": "plane"' in out, err
+
+
+def test_max_memory_help_says_what_the_guard_does(small_pair):
+    """``--max-memory``: a pair over the limit is matched in strips, refused only when even
+    strips do not fit; the help says so (it said "refuse to run")."""
+    from sswjax.cli.guard import guard_memory
+    from sswjax.config import default_params
+    from sswjax.runtime.memory import estimate_peak_bytes
+    from sswjax.runtime.plan import ExecutionPlan
+
+    params, plan = default_params(), ExecutionPlan()
+    whole = estimate_peak_bytes(1000, 1000, 64, params=params, plan=plan, channels=3)
+    fitted = guard_memory([(1000, 1000, 3)], 64, params=params, plan=plan,
+                          limit_gb=whole * 0.9 / 1e9)
+    assert fitted.strip_rows or fitted.tile  # over the limit: strips, not a refusal
+    text = _option_help("match", "--max-memory")
+    assert "refuse to run if" not in text
+    assert "strips or tiles" in text and "refused only" in text, text
+
+
+def test_bucket_with_one_pair_says_it_is_ignored(small_pair, tmp_path, run_cli):
+    """``--bucket`` pads the pairs of a folder run; one pair is matched at its own shape: a
+    note says the option is ignored (the run goes on: a script may pass it for both)."""
+    files = small_pair.folder
+    code, out, err = run_cli(["match", files / "left.png", files / "right.png", "--ndisp", NDISP,
+                              "--bucket", "--preset", "paper", "--set", "segments=none",
+                              "--set", "aggregation=box", "--set", "aggregation.radius=1",
+                              "-o", tmp_path / "d.pfm"])
+    assert code == 0, err
+    assert "sswjax: note: --bucket applies to folder runs; ignored for one pair\n" in err
+    assert read_pfm(tmp_path / "d.pfm").shape == (small_pair.height, small_pair.width)
+
+
+def test_no_cache_help_names_the_folder_the_cache_is_in(monkeypatch, tmp_path):
+    """The help of ``--no-cache`` names where the cache is: ``$XDG_CACHE_HOME`` counts."""
+    from sswjax.cli.app import build_parser
+    from sswjax.runtime.compilation import default_cache_dir
+
+    monkeypatch.delenv("SSWJAX_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert default_cache_dir() == tmp_path / "sswjax" / "xla"
+    action = next(a for a in build_parser(("params",))._actions if "--no-cache" in a.option_strings)
+    assert "$XDG_CACHE_HOME/sswjax/xla" in action.help

@@ -68,7 +68,7 @@ def build_parser(commands: tuple[str, ...] = COMMANDS) -> argparse.ArgumentParse
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not use the persistent compilation cache ($SSWJAX_CACHE_DIR, "
-                             "default ~/.cache/sswjax/xla)")
+                             "default $XDG_CACHE_HOME/sswjax/xla, else ~/.cache/sswjax/xla)")
     subparsers = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name in commands:
         module = importlib.import_module(f"sswjax.cli.{name}")

@@ -84,8 +84,9 @@ def add_match_command(commands) -> None:
                              "round(d * 256), 0 = invalid); folders: the folder of <name>.pfm, "
                              "created")
     parser.add_argument("--max-memory", type=gigabytes, metavar="GB",
-                        help="refuse to run if the estimated peak memory exceeds GB (the memory "
-                             "available is always a limit)")
+                        help="the memory a run may take: a pair whose estimated peak exceeds "
+                             "GB is matched in strips or tiles that fit, refused only when even "
+                             "those do not (the memory available is always a limit)")
     parser.add_argument("--resume", action="store_true",
                         help="folders: keep the maps already in OUT_DIR, match the others")
     parser.add_argument("--bucket", action=argparse.BooleanOptionalAction, default=None,
@@ -129,10 +130,14 @@ def _check_range_outputs(outputs: dict, calib, min_disp: int, ndisp: int) -> Non
 
 def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) -> ExecutionPlan:
     """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
-    is for folders; the pair (sizes from the headers) must fit in memory, in strips if it must.
+    is for folders (``--bucket`` too: a note says it is ignored); the pair (sizes from the
+    headers) must fit in memory, in strips if it must.
     Returns the plan to match with."""
     if args.resume:
         raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
+    if args.bucket:  # harmless for one pair (a script may pass it for both): said, not refused
+        print("sswjax: note: --bucket applies to folder runs; ignored for one pair",
+              file=sys.stderr)
     if not isinstance(args.ndisp, int) or args.rectify is not None:
         return plan  # the range or the size comes from the images: guarded once they are read
     left, right = image_size(args.left), image_size(args.right)

@@ -83,14 +83,29 @@ def setting(text: str) -> tuple[str, object]:
     return parsed
 
 
+def _kind_example() -> str:
+    """A ``STAGE=KIND`` that the default preset accepts as it is (a kind that needs another
+    stage would fail for a user who copies it): the last stage with a choice, its last kind
+    that validates."""
+    base = default_params()
+    for slot in reversed([name for name in SLOTS if len(kinds(name)) > 1]):
+        for kind in reversed(kinds(slot)):
+            if getattr(base, slot) is not None and getattr(base, slot).kind == kind:
+                continue  # already the preset's: shows nothing
+            try:
+                check_params(base.replace(**{slot: {"kind": kind}}))
+            except ValueError:
+                continue
+            return f"{slot}={kind}"
+    return f"{next(iter(SLOTS))}=none"
+
+
 def _set_help() -> str:
     """``--set`` help from the registry: the stages in order with their kinds."""
     stages = "; ".join(
         f"{name}: {', '.join((['none'] if slot.optional else []) + list(kinds(name)))}"
         for name, slot in SLOTS.items())
-    switchable = [name for name in SLOTS if len(kinds(name)) > 1] or list(SLOTS)
-    example_slot = switchable[-1]
-    examples = [f"{example_slot}={next(reversed(kinds(example_slot)), 'none')}"]
+    examples = [_kind_example()]
     for name, config in default_params().stages():
         traced = [] if config is None else [field for field, spec in option_fields(config)
                                             if not spec.static]

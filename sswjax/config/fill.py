@@ -145,7 +145,7 @@ class PlaneFill(_MedianOptions):
         super().validate(params)
         if params.segments is None:
             raise ConfigError("fill", "fill 'plane' fits a plane per superpixel: it needs "
-                              "segments")
+                              "segments (--set segments=slic)")
 
     def fill(self, disparity, valid, *, guide, labels, num_segments):
         """The background fill, then :func:`~sswjax.stages.planes.plane_refine`."""
