@@ -4,7 +4,9 @@ cameras with known intrinsics, radial and tangential distortion and a small rota
 them, 240 x 160."""
 
 import argparse
+import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -12,8 +14,8 @@ import pytest
 from sswjax.api.auto_range import estimate_range, range_for_depths
 from sswjax.api.geometry import Calibration, Rectification, StereoCalibration, point_cloud
 from sswjax.api.raw_frame import raw_depth, raw_point_cloud
-from sswjax.api.rectify import (OUTSIDE_VIEW, outside_view, rectification, rectified_calibration,
-                                rectify_pair)
+from sswjax.api.rectify import (OUTSIDE_VIEW, disparity_matrix, outside_view, rectification,
+                                rectified_calibration, rectify_pair)
 from sswjax.cli.rectify import rectify_images
 from sswjax.data.calibration import read_calib, read_calibration
 from sswjax.data.io import read_image, read_pfm
@@ -348,3 +350,34 @@ def test_match_folders_with_rectify(rig, tmp_path, run_cli):
                                "--ndisp", "48", "--workers", "2", "-o", tmp_path / "out2"])
     assert code == 2 and stderr.count("\n") == 1, stderr
     assert "--rectify matches folders in this process" in stderr
+
+
+def test_vertical_rig_is_one_line_without_warnings(tmp_path, run_cli):
+    """A rig one camera above the other is refused before Q's 1 / Tx divides by zero: only the
+    one-line error on stderr (no NumPy RuntimeWarning and its source line)."""
+    small = np.array([[50.0, 0, 19.5], [0, 50.0, 11.5], [0, 0, 1]])
+    storage = cv2.FileStorage(str(tmp_path / "vertical.yaml"), cv2.FILE_STORAGE_WRITE)
+    for key, value in {"K1": small, "D1": np.zeros((1, 5)), "K2": small, "D2": np.zeros((1, 5)),
+                       "R": np.eye(3), "T": np.array([[0.0], [-0.1], [0.0]])}.items():
+        storage.write(key, value)
+    storage.write("image_width", 40)
+    storage.write("image_height", 24)
+    storage.release()
+    image = np.random.default_rng(0).integers(0, 256, (24, 40), dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "l.png"), image)
+    cv2.imwrite(str(tmp_path / "r.png"), image)
+    message = ("sswjax: error: the cameras are one above the other after rectification (a "
+               "vertical rig): only side-by-side rigs are supported\n")
+    command = subprocess.run([sys.executable, "-m", "sswjax.cli", "rectify", tmp_path / "l.png",
+                              tmp_path / "r.png", "--calib", tmp_path / "vertical.yaml", "-o",
+                              tmp_path / "out"], capture_output=True, text=True, timeout=300)
+    assert (command.returncode, command.stderr) == (2, message)       # one line, no Warning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code, _, stderr = run_cli(["match", tmp_path / "l.png", tmp_path / "r.png", "--rectify",
+                                   tmp_path / "vertical.yaml", "--ndisp", "8", "-o",
+                                   tmp_path / "d.pfm"])
+    assert (code, stderr) == (2, message) and [str(w.message) for w in caught] == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["l.png", "r.png", "vertical.yaml"]
+    with pytest.raises(ValueError, match="P1 and P2 have the same x: no baseline"):
+        disparity_matrix(np.eye(3, 4), np.eye(3, 4))

@@ -58,19 +58,31 @@ def lens(distortion: np.ndarray) -> np.ndarray:
 
 
 def disparity_matrix(p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
-    """``Q`` float64 (4, 4) of ``cv2.stereoRectify`` from two rectified projections (3, 4)."""
+    """``Q`` float64 (4, 4) of ``cv2.stereoRectify`` from two rectified projections (3, 4).
+
+    Raises ``ValueError`` when the two projections share their x (no horizontal baseline:
+    ``Q`` would divide by zero)."""
     tx = p2[0, 3] / p2[0, 0] - p1[0, 3] / p1[0, 0]
+    if tx == 0:
+        raise ValueError("P1 and P2 have the same x: no baseline along the rows")
     (f, cx1, cy), cx2 = (p1[0, 0], p1[0, 2], p1[1, 2]), p2[0, 2]
     return np.array([[1, 0, 0, -cx1], [0, 1, 0, -cy], [0, 0, 0, f],
                      [0, 0, -1 / tx, (cx1 - cx2) / tx]], np.float64)
 
 
 def _identity(calib: StereoCalibration) -> Rectification:
-    """The rectification of a rig already rectified: no rotation, ``P = K [I | t]``."""
+    """The rectification of a rig already rectified: no rotation, ``P = K [I | t]`` (``q``
+    None: :func:`_side_by_side` fills it in)."""
     p1 = np.hstack([calib.left_matrix, np.zeros((3, 1))])
     p2 = np.hstack([calib.right_matrix, calib.right_matrix @ calib.translation[:, None]])
-    return Rectification(np.eye(3), np.eye(3), p1, p2, disparity_matrix(p1, p2),
-                         calib.image_size)
+    return Rectification(np.eye(3), np.eye(3), p1, p2, None, calib.image_size)
+
+
+def _side_by_side(rect: Rectification) -> Rectification:
+    """``rect`` checked to be a side-by-side pair (:func:`_check_side_by_side`), then its ``Q``
+    computed when it has none: checked first, since ``Q`` divides by the baseline's x."""
+    rect = _check_side_by_side(rect)
+    return rect if rect.q is not None else rect._replace(q=disparity_matrix(rect.p1, rect.p2))
 
 
 def _check_side_by_side(rect: Rectification) -> Rectification:
@@ -123,12 +135,10 @@ def rectification(calib: StereoCalibration, *, size: tuple[int, int] | None = No
         raise ValueError(f"alpha must be a number in [0, 1], got {alpha!r}")
     image_size = calib.image_size or (None if size is None else (int(size[0]), int(size[1])))
     if calib.rectified:
-        return _check_side_by_side(_identity(calib._replace(image_size=image_size)))
+        return _side_by_side(_identity(calib._replace(image_size=image_size)))
     own = calib.rectification
     if own is not None and alpha is None:
-        return _check_side_by_side(own._replace(
-            q=disparity_matrix(own.p1, own.p2) if own.q is None else own.q,
-            size=own.size or image_size))
+        return _side_by_side(own._replace(size=own.size or image_size))
     if image_size is None:
         raise ValueError("the calibration gives no image size: pass the images' size")
     cv2 = opencv()
@@ -140,8 +150,7 @@ def rectification(calib: StereoCalibration, *, size: tuple[int, int] | None = No
     p2 = p2.copy()  # each view centred on its raw image: a verged rig keeps its overlap
     p2[0, 2] += (_centre(cv2, image_size, calib.left_matrix, calib.left_distortion, r1, p1)
                  - _centre(cv2, image_size, calib.right_matrix, calib.right_distortion, r2, p2))
-    return _check_side_by_side(Rectification(r1, r2, p1, p2, disparity_matrix(p1, p2),
-                                             image_size))
+    return _side_by_side(Rectification(r1, r2, p1, p2, None, image_size))
 
 
 def _centre(cv2, size, camera, distortion, rotation, projection) -> float:
