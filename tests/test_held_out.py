@@ -1,41 +1,82 @@
-"""benchmarks/held_out.py: leave-one-data-set-out choice over ablation results."""
+"""The held-out rule that chose the presets' values (:mod:`sswjax.evaluation.selection`), and
+the scoring's average over scenes it is fed with (:func:`sswjax.evaluation.runner.scene_average`)."""
 
-import csv
-import sys
-from pathlib import Path
+import math
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import pytest
 
-import held_out  # noqa: E402
+from sswjax.evaluation.metrics import weighted_average
+from sswjax.evaluation.runner import SCORINGS, scene_average
+from sswjax.evaluation.selection import choose, held_out_choices, relative_errors
 
-
-def _write(path, rows):
-    keys = ["config", "trainingQ bad2.0 nonocc", "trainingQ bad2.0 all", "KITTI2012 bad2.0 all",
-            "Middlebury2001 bad2.0 all"]
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=keys)
-        writer.writeheader()
-        for name, values in rows.items():
-            writer.writerow(dict(zip(keys, [name, *values])))
+# "a" is best on trainingQ, "b" on KITTI and "c" on Middlebury 2001 (bad 2.0; trainingQ's the
+# mean of its weighted nonocc and all).
+ERRORS = {"a": {"trainingQ": 11.0, "KITTI2012": 12.0, "Middlebury2001": 2.0},
+          "b": {"trainingQ": 13.0, "KITTI2012": 10.0, "Middlebury2001": 2.1},
+          "c": {"trainingQ": 13.0, "KITTI2012": 12.0, "Middlebury2001": 1.0}}
+ONE_EACH = {name: [name] for name in ("trainingQ", "KITTI2012", "Middlebury2001")}
 
 
-def test_each_fold_chooses_on_the_other_two_sets(tmp_path):
-    # "a" is best on trainingQ, "b" on KITTI and "c" on Middlebury 2001; with trainingQ held out
-    # the choice is made on KITTI and Middlebury 2001 only, and so on.
-    _write(tmp_path / "one.csv", {"a": (8.0, 14.0, 12.0, 2.0), "b": (10.0, 16.0, 10.0, 2.1)})
-    _write(tmp_path / "two.csv", {"c": (10.0, 16.0, 12.0, 1.0)})
-    errors = held_out.read_errors([tmp_path / "one.csv", tmp_path / "two.csv"])
-    assert errors["a"]["trainingQ"] == 11.0
-    rows = {r["held out"]: r for r in held_out.held_out_rows(errors)}
-    assert rows["trainingQ"]["chosen on the other two"] == "c"     # 1.2 + 1.0 beats b's 1.0 + 2.1
-    assert rows["trainingQ"]["held-out error"] == "13.00"
-    assert rows["trainingQ"]["best possible"] == "11.00 (a)"
-    assert rows["KITTI2012"]["chosen on the other two"] == "c"     # 13/11 + 1.0 < 1.0 + 2.0
-    assert rows["Middlebury2001"]["chosen on the other two"] == "b"  # 13/11 + 1.0 < 1.0 + 1.2
-    assert rows["none"]["chosen on the other two"] == "c (on all three)"
+def test_the_choice_is_the_lowest_mean_error_relative_to_the_best():
+    assert relative_errors(ERRORS, ["KITTI2012", "Middlebury2001"]) == pytest.approx(
+        {"a": (1.2 + 2.0) / 2, "b": (1.0 + 2.1) / 2, "c": (1.2 + 1.0) / 2})
+    assert choose(ERRORS, ["KITTI2012", "Middlebury2001"]) == "c"   # 1.2 + 1.0 beats b's 1.0 + 2.1
+    assert choose(ERRORS, ["trainingQ"]) == "a"
 
 
-def test_rows_missing_a_set_are_left_out(tmp_path):
-    _write(tmp_path / "one.csv", {"a": (8.0, 14.0, 12.0, 2.0), "b": (10.0, 16.0, "", 2.1)})
-    assert list(held_out.read_errors([tmp_path / "one.csv"])) == ["a"]
-    assert held_out.main([str(tmp_path / "one.csv"), "-o", str(tmp_path / "out")]) == 2
+def test_each_fold_chooses_on_the_other_sets():
+    folds = {fold.held_out: fold for fold in held_out_choices(ERRORS, ONE_EACH)}
+    assert list(folds) == ["trainingQ", "KITTI2012", "Middlebury2001"]
+    assert folds["trainingQ"].chosen == "c"
+    assert folds["trainingQ"].errors == {"trainingQ": 13.0}
+    assert (folds["trainingQ"].best, folds["trainingQ"].best_errors) == ("a", {"trainingQ": 11.0})
+    assert folds["KITTI2012"].chosen == "c"       # 13/11 + 1.0 < 1.0 + 2.0
+    assert folds["Middlebury2001"].chosen == "b"  # 13/11 + 1.0 < 1.0 + 1.2
+
+
+def test_a_set_may_weigh_several_thresholds():
+    # On bad 2.0 alone "x" wins KITTI; over 2.0, 1.0 and 0.5 "y" does, and so is chosen when
+    # trainingQ is held out.
+    errors = {"x": {"Q 2": 10.0, "Q 1": 20.0, "K 2": 4.0, "K 1": 12.0, "K 0.5": 30.0},
+              "y": {"Q 2": 10.0, "Q 1": 20.0, "K 2": 4.4, "K 1": 10.0, "K 0.5": 25.0}}
+    groups = {"Q": ["Q 2", "Q 1"], "K": ["K 2", "K 1", "K 0.5"]}
+    assert choose(errors, ["K 2"]) == "x"
+    (held_q, held_k) = held_out_choices(errors, groups)
+    assert (held_q.held_out, held_q.chosen) == ("Q", "y")
+    assert held_q.errors == {"Q 2": 10.0, "Q 1": 20.0}
+    assert held_k.best == "y"  # the best on K's three thresholds together
+
+
+@pytest.mark.parametrize("errors, criteria, message", [
+    ({}, ["K"], "no configuration to choose from"),
+    ({"a": {"K": 1.0}}, [], "no criterion to choose on"),
+    ({"a": {"K": 1.0}, "b": {"M": 1.0}}, ["K"], "configuration 'b' has no error for 'K'"),
+    ({"a": {"K": math.nan}}, ["K"], "configuration 'a' has a non-finite error for 'K': nan"),
+    ({"a": {"K": -1.0}}, ["K"], "configuration 'a' has a negative error for 'K': -1.0"),
+    ({"a": {"K": 0.0}, "b": {"K": 1.0}}, ["K"],
+     "the lowest error on 'K' is 0: errors relative to it are undefined"),
+])
+def test_the_rule_refuses_what_it_cannot_rank(errors, criteria, message):
+    with pytest.raises(ValueError, match="^" + message.replace("(", r"\(").replace(")", r"\)")
+                       + "$"):
+        choose(errors, criteria)
+
+
+def test_holding_out_needs_two_disjoint_sets():
+    with pytest.raises(ValueError, match="^leaving one data set out needs two data sets or more$"):
+        held_out_choices(ERRORS, {"trainingQ": ["trainingQ"]})
+    with pytest.raises(ValueError, match="^criterion 'KITTI2012' is in two data sets: "
+                                         "'trainingQ' and 'KITTI2012'$"):
+        held_out_choices(ERRORS, {"trainingQ": ["trainingQ", "KITTI2012"],
+                                  "KITTI2012": ["KITTI2012"]})
+    with pytest.raises(ValueError, match="^data set 'KITTI2012' has no criterion$"):
+        held_out_choices(ERRORS, {"trainingQ": ["trainingQ"], "KITTI2012": []})
+
+
+def test_scene_average_is_the_scorings_average():
+    values = {"Teddy": 10.0, "Vintage": 40.0}
+    middeval3 = SCORINGS["middeval3"]
+    assert scene_average(values, middeval3) == weighted_average(values) != 25.0
+    assert scene_average(values, SCORINGS["kitti"]) == 25.0
+    # a scene without an official weight (a user's own MiddEval3-layout folder): the plain mean
+    assert scene_average({"Teddy": 10.0, "Mine": 40.0}, middeval3) == 25.0

@@ -216,9 +216,13 @@ def evaluate_scenes(
     return results
 
 
-def _average(values: Mapping[str, float], scoring: Scoring) -> float:
-    """The ``scoring``'s average of per-scene values; a weighted scoring falls back to the
-    plain mean when some scene has no weight (a user's own folder in MiddEval3's layout)."""
+def scene_average(values: Mapping[str, float], scoring: Scoring) -> float:
+    """The ``scoring``'s average of per-scene values (scene name -> value): what
+    :func:`summary` reports, and what benchmarks that score their own maps average with.
+
+    A weighted scoring falls back to the plain mean when some scene has no weight (a user's
+    own folder in MiddEval3's layout); no average takes a ``nan``.
+    """
     if scoring.average == "weighted" and all(name in scoring.weights for name in values):
         return weighted_average(values, weights=scoring.weights)
     return scene_mean(values)
@@ -247,7 +251,7 @@ def summary(
         if not all(region in r.metrics for r in results):
             continue
         out[region] = {
-            key: _average({r.scene: r.metrics[region][key] for r in results}, scoring)
+            key: scene_average({r.scene: r.metrics[region][key] for r in results}, scoring)
             for key in scoring.keys
         }
     return out
