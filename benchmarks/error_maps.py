@@ -38,7 +38,7 @@ from sswjax.evaluation.runner import SCORINGS, evaluate_scene
 from sswjax.evaluation.methods import PEERS
 from sswjax.stages.color import rgb_to_gray
 
-from ablation import SETS  # benchmarks/, on the path when run as a script: set -> folder, scoring
+from _report import SETS  # benchmarks/, on the path when run as a script: set -> folder, scoring
 from front import _method_runners  # presets and installed peers as (left, right, ndisp) callables
 
 # Chosen with --candidates: the trainingQ scenes where paper loses most to the best peer (Playtable,

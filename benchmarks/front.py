@@ -37,11 +37,10 @@ import sswjax
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.data.layouts import load_scenes
 from sswjax.evaluation.metrics import evaluate_disparity
-from sswjax.evaluation.runner import SCORINGS, _average
+from sswjax.evaluation.runner import SCORINGS, scene_average
 from sswjax.evaluation.methods import PEERS
 
-from _report import write_report  # benchmarks/, on the path when run as a script
-from ablation import SETS  # the three sets and their scoring
+from _report import SETS, write_report  # benchmarks/: on the path as a script
 
 REFERENCE = "sgbm"  # the peer every time is divided by
 COLUMNS = {  # set -> the (region, threshold) columns of the front, 2.0 first (the plot's axis)
@@ -126,7 +125,7 @@ def score(maps: dict, scenes, set_name: str) -> dict[str, float]:
     out = {}
     for region, key in COLUMNS[set_name]:
         values = {name: m[region][key] for name, m in metrics.items() if region in m}
-        out[f"{key} {region}"] = _average(values, scoring)
+        out[f"{key} {region}"] = scene_average(values, scoring)
     return out
 
 

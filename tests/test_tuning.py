@@ -1,8 +1,6 @@
 """Tests of the differentiable parameter search (sswjax.search): tiny synthetic crops only."""
 
 import json
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -338,41 +336,3 @@ def test_random_crops_sparse_ground_truth():
     _, _, _, once, _ = tuning.random_crops([scene], np.random.default_rng(1), batch=20, height=12,
                                            width=20)
     assert once.mean(axis=(1, 2)).min() < 0.2  # without min_valid some crops miss it
-
-
-@pytest.fixture(scope="module")
-def search_script():
-    """tuning/search.py as a module (tuning/ on sys.path while it imports tuning/plot.py)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tuning"))
-    try:
-        import search
-    finally:
-        sys.path.pop(0)
-    return search
-
-
-@pytest.mark.parametrize("argv, message", [
-    (["--pipeline", "accurate"], "needs --folds datasets"),
-    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "segment_weight"],
-     "--freeze aggregation.segment_weight: not searched with --pipeline accurate"),
-    # the old raw key names are read as the new ones
-    (["--pipeline", "accurate", "--folds", "datasets", "--freeze", "sgm_p2", "tad_truncation",
-      "--min-valid", "1.5"], "--min-valid must be in"),
-    (["--freeze", "tad_weight"], "invalid choice: 'tad_weight'"),
-    (["--folds", "one"], "expected a number or 'datasets'"),
-    (["--folds", "datasets", "--min-valid", "1.5"], "--min-valid must be in"),
-])
-def test_search_script_refuses_before_writing(tmp_path, capsys, search_script, argv, message):
-    """tuning/search.py: option errors exit 2 with one message and leave --out unwritten."""
-    out = tmp_path / "run"
-    with pytest.raises(SystemExit) as exit_info:
-        search_script.main(["--out", str(out), *argv])
-    assert exit_info.value.code == 2
-    assert message in capsys.readouterr().err
-    assert not out.exists()
-
-
-def test_search_script_reads_old_freeze_names(search_script):
-    assert [search_script.freeze_key(k) for k in ("weight_logits", "sgm_sigma", "temperature",
-                                                  "optimizer.p1")] == [
-        "cost.weight_logits", "optimizer.sigma", "temperature", "optimizer.p1"]
