@@ -87,6 +87,8 @@ def _flow(text: str, path: Path, number: int):
         key, sep, value = item.partition(":")
         if not sep:
             raise InputError(f"calibration file {path} line {number}: {item!r} is not key: value")
+        if key.strip() in pairs:
+            raise InputError(f"calibration file {path} line {number}: {key.strip()} given twice")
         pairs[key.strip()] = _flow(value, path, number)
     return pairs
 
@@ -99,7 +101,8 @@ def _untag(text: str) -> str:
 def parse_yaml(text: str, path: Path) -> dict:
     """The top-level mapping of a FileStorage or camera_info YAML text (module docstring).
 
-    Raises ``InputError`` (one line, with the line number) on what it cannot read.
+    Raises ``InputError`` (one line, with the line number) on what it cannot read, and on a
+    key given twice in one mapping.
 
     Examples
     --------
@@ -151,7 +154,7 @@ def _block(lines, i, indent, path):
             items.append(_flow(_untag(lines[i][1][1:]), path, lines[i][2]))
             i += 1
         return items, i
-    mapping = {}
+    mapping, seen = {}, {}
     while i < len(lines) and lines[i][0] == indent:
         _, content, number = lines[i]
         key, sep, rest = content.partition(":")
@@ -159,6 +162,10 @@ def _block(lines, i, indent, path):
             raise InputError(f"calibration file {path} line {number}: expected key: value, got "
                              f"{content[:40]!r}")
         key, rest = scalar(key) if key.strip()[:1] in "'\"" else key.strip(), _untag(rest)
+        if key in seen:
+            raise InputError(f"calibration file {path} line {number}: {key} given twice "
+                             f"(lines {seen[key]} and {number})")
+        seen[key] = number
         i += 1
         if rest:
             mapping[key] = _flow(rest, path, number)
@@ -172,7 +179,17 @@ def _block(lines, i, indent, path):
     return mapping, i
 
 
-def _element(node):
+def _children(node, path: Path) -> dict:
+    """Tag -> value of an XML element's children; a tag given twice is refused."""
+    values = {}
+    for child in node:
+        if child.tag in values:
+            raise InputError(f"calibration file {path}: <{child.tag}> given twice")
+        values[child.tag] = _element(child, path)
+    return values
+
+
+def _element(node, path: Path):
     """The value of one XML element (module docstring)."""
     children = list(node)
     if node.get("type_id") == "opencv-matrix" or (children and all(
@@ -185,7 +202,7 @@ def _element(node):
             value["data"] = [scalar(word) for word in fields["data"]]
         return value
     if children:
-        return {child.tag: _element(child) for child in children}
+        return _children(node, path)
     words = (node.text or "").split()
     values = [scalar(word) for word in words]
     if len(values) == 1:
@@ -196,14 +213,15 @@ def _element(node):
 
 
 def parse_xml(text: str, path: Path) -> dict:
-    """The keys of a FileStorage XML text (``<opencv_storage>``); ``InputError`` if not XML."""
+    """The keys of a FileStorage XML text (``<opencv_storage>``); ``InputError`` if not XML or
+    an element holds one tag twice."""
     try:
         root = ElementTree.fromstring(text.encode("utf-8"))
     except ElementTree.ParseError as exc:
         raise InputError(f"calibration file {path} is not readable XML: {first_line(exc)}") from exc
     if root.tag != "opencv_storage":
         raise InputError(f"calibration file {path}: expected <opencv_storage>, got <{root.tag}>")
-    return {child.tag: _element(child) for child in root}
+    return _children(root, path)
 
 
 def read_filestorage(path: str | Path) -> dict:

@@ -33,9 +33,10 @@ _SHAPES = {"S": (2,), "K": (3, 3), "D": (5,), "R": (3, 3), "T": (3,), "S_rect": 
 
 
 def read_kitti_keys(path: str | os.PathLike) -> dict[str, list[str]]:
-    """Key -> its words, for each ``KEY: ...`` line of a ``calib_cam_to_cam.txt``."""
+    """Key -> its words, for each ``KEY: ...`` line of a ``calib_cam_to_cam.txt`` (a key given
+    twice is refused, naming both lines)."""
     path = Path(path)
-    keys = {}
+    keys, lines = {}, {}
     for number, line in enumerate(read_text(path).splitlines(), start=1):
         if not line.strip():
             continue
@@ -43,7 +44,11 @@ def read_kitti_keys(path: str | os.PathLike) -> dict[str, list[str]]:
         if not sep or not key.strip() or " " in key.strip():
             raise InputError(f"calibration file {path} line {number} is not KEY: values: "
                              f"{line.strip()[:40]!r}")
-        keys[key.strip()] = rest.split()
+        key = key.strip()
+        if key in lines:
+            raise InputError(f"calibration file {path} line {number}: {key} given twice "
+                             f"(lines {lines[key]} and {number})")
+        keys[key], lines[key] = rest.split(), number
     return keys
 
 
@@ -90,8 +95,8 @@ def read_kitti_calibration(path: str | os.PathLike, *, cameras: tuple[str, str] 
     ------
     InputError
         One line naming the file and the key: a missing file or key, a line that is not
-        ``KEY: values``, a wrong count of numbers, non-finite values, a singular camera
-        matrix, a rotation that is not one, cameras of different sizes.
+        ``KEY: values``, a key given twice, a wrong count of numbers, non-finite values, a
+        singular camera matrix, a rotation that is not one, cameras of different sizes.
 
     Examples
     --------

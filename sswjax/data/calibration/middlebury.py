@@ -6,6 +6,13 @@
 ``read_middlebury_calibration`` gives both cameras as a
 :class:`~sswjax.api.geometry.StereoCalibration` (``rectified``: no distortion, no rotation, the
 right camera ``baseline`` to the right; ``width`` and ``height`` its image size).
+
+Every path reads the file through ``read_calib`` and its checks, so that one file gives one
+rig or one refusal everywhere (``match --calib``, ``--rectify``, ``sswjax rectify``, the
+evaluation layouts): a key given twice is refused (with both line numbers), and ``doffs``,
+which the format defines as ``cam1``'s ``cx`` minus ``cam0``'s, must agree with the two cameras
+within :data:`DOFFS_TOLERANCE`; a file without ``doffs`` takes it from them (without ``cam1``:
+0, the file giving one camera for both).
 """
 
 from __future__ import annotations
@@ -17,11 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax._files import InputError
+from sswjax._files import InputError, input_file
 from sswjax.api.geometry import Calibration, StereoCalibration, check_calibration
 from sswjax.data.calibration.common import checked, size_of
 
-__all__ = ["read_calib", "read_calibration", "read_middlebury_calibration"]
+__all__ = ["DOFFS_TOLERANCE", "read_calib", "read_calibration", "read_middlebury_calibration"]
+
+DOFFS_TOLERANCE = 0.01
+"""Pixels a given ``doffs`` may differ from ``cam1``'s ``cx`` minus ``cam0``'s: the published
+files round each of the three to 3 decimals (MiddEval3's Shelves: ``doffs=47.561``, the
+cameras 47.562 apart), and 0.01 px of disparity is far below what a depth can tell."""
 
 
 def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[str, str | float]:
@@ -44,22 +56,23 @@ def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[s
     Raises
     ------
     InputError
-        If the file is missing or unreadable, a line is not ``key=value``, or ``ndisp`` is
-        missing (with ``require_ndisp``) or not a positive integer.
+        If the file is missing, not a regular file or unreadable, a line is not
+        ``key=value``, a key is given twice, ``ndisp`` is missing (with ``require_ndisp``) or
+        not a positive integer, or ``doffs`` disagrees with ``cam0`` and ``cam1`` (then both
+        must be ``[f 0 cx; 0 f cy; 0 0 1]``).
 
     Examples
     --------
     >>> read_calib("Motorcycle/calib.txt")["ndisp"]  # doctest: +SKIP
     70
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"calibration file not found: {path}")
+    path = input_file(path, "calibration file")
     try:
         text = path.read_text(encoding="ascii")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read calibration file {path}: {exc}") from exc
     calib: dict[str, str | float] = {}
+    lines: dict[str, int] = {}
     for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
@@ -69,10 +82,15 @@ def read_calib(path: str | os.PathLike, *, require_ndisp: bool = True) -> dict[s
             raise InputError(
                 f"calibration file {path} line {number} is not key=value: {line.strip()[:40]!r}"
             )
+        if key in lines:
+            raise InputError(f"calibration file {path} line {number}: {key} given twice "
+                             f"(lines {lines[key]} and {number})")
+        lines[key] = number
         try:
             calib[key] = float(value)
         except ValueError:
             calib[key] = value
+    _doffs(path, calib)
     ndisp = calib.get("ndisp")
     if ndisp is None and not require_ndisp:
         return calib
@@ -96,12 +114,54 @@ def _camera(path: Path, calib: dict, key: str) -> list[list[float]]:
     return [[float(v) for v in row] for row in rows]
 
 
+def _doffs(path: Path, calib: dict) -> float:
+    """``doffs`` of a parsed file: the given one, which must agree with ``cam1``'s ``cx`` minus
+    ``cam0``'s when both are there; without it that difference (0 without ``cam1``)."""
+    doffs = calib.get("doffs")
+    if doffs is not None and not isinstance(doffs, float):
+        raise InputError(f"calibration file {path}: doffs must be a number, got {doffs!r}")
+    if doffs is not None and not math.isfinite(doffs):
+        raise InputError(f"calibration file {path}: doffs must be finite, got {doffs}")
+    if "cam0" not in calib or "cam1" not in calib:
+        return 0.0 if doffs is None else doffs
+    apart = _camera(path, calib, "cam1")[0][2] - _camera(path, calib, "cam0")[0][2]
+    if doffs is None:
+        return apart
+    if not math.isclose(doffs, apart, rel_tol=0, abs_tol=DOFFS_TOLERANCE):
+        raise InputError(f"calibration file {path}: doffs {doffs:g} is not cam1's cx minus "
+                         f"cam0's ({apart:g})")
+    return doffs
+
+
+def _rig(path: Path) -> tuple[dict, Calibration]:
+    """The parsed file (:func:`read_calib`) and its left camera (:func:`read_calibration`)."""
+    calib = read_calib(path, require_ndisp=False)
+    missing = [key for key in ("cam0", "baseline") if key not in calib]
+    if missing:
+        raise InputError(f"calibration file {path} lacks {' and '.join(missing)}")
+    (fx, _, cx), (_, fy, cy), _ = _camera(path, calib, "cam0")
+    if not math.isclose(fx, fy, rel_tol=1e-6):
+        raise InputError(f"calibration file {path}: cam0 has two focal lengths {fx:g} and "
+                         f"{fy:g}; only square pixels are supported")
+    if not isinstance(calib["baseline"], float):
+        raise InputError(f"calibration file {path}: baseline must be a number, "
+                         f"got {calib['baseline']!r}")
+    try:
+        left = check_calibration(Calibration(fx, calib["baseline"], _doffs(path, calib),
+                                             (cx, cy)))
+    except ValueError as exc:
+        raise InputError(f"calibration file {path}: {exc}") from exc
+    return calib, left
+
+
 def read_calibration(path: str | os.PathLike) -> Calibration:
     """The left camera of a Middlebury ``calib.txt``: ``cam0``, ``baseline`` and ``doffs``.
 
     ``cam0=[f 0 cx; 0 f cy; 0 0 1]`` gives the focal length and principal point (its two focal
     lengths must agree: the rectified rigs of Middlebury and ETH3D have square pixels);
-    ``doffs`` defaults to 0 when absent; ``ndisp`` and the other keys are not needed.
+    ``doffs``, the x-difference of the principal points, is ``cam1``'s ``cx`` minus ``cam0``'s
+    when absent (0 without ``cam1``) and must agree with them when given (module docstring);
+    ``ndisp`` and the other keys are not needed.
 
     Parameters
     ----------
@@ -114,32 +174,15 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
     Raises
     ------
     InputError
-        If the file is missing or unreadable, lacks ``cam0`` or ``baseline``, has a malformed
-        ``cam0`` or a non-positive focal length or baseline.
+        As :func:`read_calib`, and if the file lacks ``cam0`` or ``baseline``, has a malformed
+        ``cam0`` or ``cam1`` or a non-positive focal length or baseline.
 
     Examples
     --------
     >>> read_calibration("trainingQ/Motorcycle/calib.txt")  # doctest: +SKIP
     Calibration(focal=999.421, baseline=193.001, doffs=32.778, principal=(294.182, 252.932))
     """
-    path = Path(path)
-    calib = read_calib(path, require_ndisp=False)
-    missing = [key for key in ("cam0", "baseline") if key not in calib]
-    if missing:
-        raise InputError(f"calibration file {path} lacks {' and '.join(missing)}")
-    (fx, _, cx), (_, fy, cy), _ = _camera(path, calib, "cam0")
-    if not math.isclose(fx, fy, rel_tol=1e-6):
-        raise InputError(f"calibration file {path}: cam0 has two focal lengths {fx:g} and "
-                         f"{fy:g}; only square pixels are supported")
-    for key in ("baseline", "doffs"):
-        if not isinstance(calib.get(key, 0.0), float):
-            raise InputError(f"calibration file {path}: {key} must be a number, "
-                             f"got {calib[key]!r}")
-    try:
-        return check_calibration(Calibration(fx, calib["baseline"], calib.get("doffs", 0.0),
-                                             (cx, cy)))
-    except ValueError as exc:
-        raise InputError(f"calibration file {path}: {exc}") from exc
+    return _rig(Path(path))[1]
 
 
 def read_middlebury_calibration(path: str | os.PathLike) -> StereoCalibration:
@@ -149,13 +192,13 @@ def read_middlebury_calibration(path: str | os.PathLike) -> StereoCalibration:
     ``K1 = cam0``, ``K2 = cam1`` (without ``cam1``: ``cam0`` moved by ``doffs``), no
     distortion, ``R = I``, ``T = (-baseline, 0, 0)``; the image size from ``width`` and
     ``height`` when both are there. ``doffs``, when given, must be ``cam1``'s ``cx`` minus
-    ``cam0``'s.
+    ``cam0``'s (within :data:`DOFFS_TOLERANCE`).
 
     Raises
     ------
     InputError
-        As :func:`read_calibration`, and on a bad ``cam1``, ``width`` or ``height``, or a
-        ``doffs`` that disagrees with the two cameras (one line naming the file and the key).
+        As :func:`read_calibration`, and on a bad ``width`` or ``height`` (one line naming the
+        file and the key).
 
     Examples
     --------
@@ -163,15 +206,10 @@ def read_middlebury_calibration(path: str | os.PathLike) -> StereoCalibration:
     (741, 497)
     """
     path = Path(path)
-    left = read_calibration(path)
-    calib = read_calib(path, require_ndisp=False)
+    calib, left = _rig(path)
     cam0 = np.array(_camera(path, calib, "cam0"))
     if "cam1" in calib:
         cam1 = np.array(_camera(path, calib, "cam1"))
-        if "doffs" in calib and not math.isclose(cam1[0, 2] - cam0[0, 2], left.doffs,
-                                                 abs_tol=1e-3):
-            raise InputError(f"calibration file {path}: doffs {left.doffs:g} is not cam1's cx "
-                             f"minus cam0's ({cam1[0, 2] - cam0[0, 2]:g})")
     else:
         cam1 = cam0.copy()
         cam1[0, 2] += left.doffs
