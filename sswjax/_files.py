@@ -7,7 +7,8 @@ writable) raises :class:`InputError`, a ``ValueError`` with a one-line message n
 A set of outputs written together goes through :func:`atomic_outputs`: every file is written
 to a temporary file beside it, and all of them are moved into place only once all are written,
 so either every output gets its new content or none changes. :func:`same_file` tells whether
-two paths name one file (symbolic and hard links included).
+two paths name one file (symbolic and hard links included); :func:`input_file` refuses an input
+that is not a regular file (a FIFO, a device, a directory) before anything opens it.
 """
 
 from __future__ import annotations
@@ -15,12 +16,13 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 __all__ = ["InputError", "OutputFiles", "atomic_output", "atomic_outputs", "first_line",
-           "output_file", "reason", "same_file", "write_json"]
+           "input_file", "output_file", "reason", "same_file", "write_json"]
 
 
 class InputError(ValueError):
@@ -59,6 +61,36 @@ def reason(error: BaseException | str) -> str:
     reason (``Permission denied``, without the errno and path the message already names), else
     :func:`first_line`."""
     return first_line(getattr(error, "strerror", None) or error)
+
+
+_NOT_REGULAR = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"),
+                (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+                (stat.S_ISBLK, "a block device"))
+
+
+def input_file(path: str | os.PathLike, what: str) -> Path:
+    """``path`` as a ``Path`` once it names a regular file (symbolic links followed), else an
+    :class:`InputError` of one line: ``<what> not found: PATH``, or ``<what> PATH is not a
+    regular file (a FIFO)`` (a directory, a socket, a device). Nothing is opened: opening a
+    FIFO waits for a writer, and a device may never end.
+
+    Examples
+    --------
+    >>> input_file("/dev/null", "image")
+    Traceback (most recent call last):
+    ...
+    sswjax._files.InputError: image /dev/null is not a regular file (a character device)
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError, ValueError):
+        raise InputError(f"{what} not found: {path}") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {reason(exc)}") from None
+    if not stat.S_ISREG(mode):
+        kind = next((name for test, name in _NOT_REGULAR if test(mode)), "a special file")
+        raise InputError(f"{what} {path} is not a regular file ({kind})")
+    return Path(path)
 
 
 def _identity(path: str | os.PathLike) -> tuple[str, tuple[int, int] | None]:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from sswjax._files import InputError, reason
+from sswjax._files import InputError, input_file, reason
 from sswjax.api.geometry import StereoCalibration
 from sswjax.data.calibration.kitti import COLOUR, GRAY, read_kitti_calibration
 from sswjax.data.calibration.middlebury import (read_calib, read_calibration,
@@ -42,16 +42,15 @@ FORMATS = ("opencv-yaml", "opencv-xml", "npz", "ros", "kitti", "middlebury")
 def calibration_format(path: str | os.PathLike) -> str:
     """The format of a calibration file (one of :data:`FORMATS`), from its first bytes.
 
-    Raises ``InputError`` if the file is missing, unreadable or none of them.
+    Raises ``InputError`` if the file is missing, not a regular file (a FIFO is never opened),
+    unreadable or none of them.
 
     Examples
     --------
     >>> calibration_format("Motorcycle/calib.txt")  # doctest: +SKIP
     'middlebury'
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"calibration file not found: {path}")
+    path = input_file(path, "calibration file")
     try:
         with open(path, "rb") as handle:
             head = handle.read(4096)

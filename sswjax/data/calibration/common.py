@@ -13,17 +13,16 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax._files import InputError, reason
+from sswjax._files import InputError, input_file, reason
 from sswjax.api.geometry import StereoCalibration, check_stereo_calibration, checked_array
 
 __all__ = ["checked", "matrix", "read_text", "size_of"]
 
 
 def read_text(path: str | os.PathLike) -> str:
-    """The text of a calibration file (UTF-8); ``InputError`` if missing or unreadable."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"calibration file not found: {path}")
+    """The text of a calibration file (UTF-8); ``InputError`` if missing, not a regular file
+    (never opened: a FIFO's open would wait) or unreadable."""
+    path = input_file(path, "calibration file")
     try:
         return path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sswjax._files import InputError, reason
+from sswjax._files import InputError, input_file, reason
 from sswjax.api.geometry import Rectification, StereoCalibration
 from sswjax.data.calibration.common import checked, matrix, size_of
 from sswjax.data.calibration.filestorage import read_filestorage
@@ -37,9 +37,7 @@ _RECTIFICATION = ("R1", "R2", "P1", "P2")
 
 def read_npz(path: str | os.PathLike) -> dict:
     """The arrays of a ``.npz`` file by name (no pickles); ``InputError`` if unreadable."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"calibration file not found: {path}")
+    path = input_file(path, "calibration file")
     try:
         with np.load(path, allow_pickle=False) as archive:
             return {name: archive[name] for name in archive.files}
@@ -48,8 +46,12 @@ def read_npz(path: str | os.PathLike) -> dict:
 
 
 def _read(path: Path) -> dict:
-    with open(path, "rb") as handle:
-        magic = handle.read(4) if path.is_file() else b""
+    path = input_file(path, "calibration file")
+    try:
+        with open(path, "rb") as handle:
+            magic = handle.read(4)
+    except OSError as exc:
+        raise InputError(f"cannot read calibration file {path}: {reason(exc)}") from exc
     if magic.startswith(b"PK") or path.suffix.lower() == ".npz":
         return read_npz(path)
     return read_filestorage(path)
