@@ -22,7 +22,7 @@ import os
 import warnings
 from collections.abc import Mapping
 
-from sswjax._files import atomic_output
+from sswjax._files import atomic_output, input_file
 from sswjax.config.fields import ConfigError
 from sswjax.config.legacy import (DYNAMIC_DEFAULTS, EXECUTION_DEFAULTS, NEWER_SLOTS,
                                   STATIC_DEFAULTS, from_flat, old_names, translate)
@@ -168,6 +168,7 @@ def read_params_file(path: str | os.PathLike, *, base: str | None = None
     file's ``"preset"`` or given with an old flat file.
     """
     _check_base(base)
+    input_file(path, "parameter file")  # a FIFO is refused, not opened (its open would wait)
     try:
         with open(path, encoding="utf-8") as handle:
             data = json.load(handle)
