@@ -44,7 +44,8 @@ from sswjax.cli.options import (add_parameter_options, add_plan_options, params_
                                 plan_from_args)
 from sswjax.cli.rectify import outside_bits, rectified, stereo_rig
 from sswjax.config import Params
-from sswjax.data.io import read_image
+from sswjax.data.io import read_oriented
+from sswjax.data.orientation import upright_pair
 from sswjax.runtime.plan import ExecutionPlan
 
 __all__ = ["AUTO", "MATCH_OUTPUTS", "add_match_command", "guard_pair", "ndisp_option",
@@ -211,7 +212,10 @@ def run_match(args: argparse.Namespace) -> int:
         raise ValueError(f"{'--alpha' if args.alpha is not None else '--cameras'} goes with "
                          "--rectify STEREO_CALIB")
     with compile_notes(), atomic_outputs(outputs.values()) as files:  # destinations writable
-        raw_left, raw_right = read_image(args.left), read_image(args.right)
+        raw_left, raw_right, notes = upright_pair(read_oriented(args.left),
+                                                  read_oriented(args.right))
+        for note in notes:  # a photo stored turned, turned upright (its EXIF tag)
+            print(f"sswjax: note: {note}", file=sys.stderr)
         left, right, pair = raw_left, raw_right, None
         if stereo is not None:
             pair, calib = rectified(stereo, raw_left, raw_right, alpha=args.alpha)

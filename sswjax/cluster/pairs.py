@@ -11,6 +11,7 @@ from PIL import Image
 
 from sswjax._files import InputError
 from sswjax.data.io import read_image
+from sswjax.data.orientation import upright_size
 
 __all__ = ["IMAGE_SUFFIXES", "FolderPair", "folder_pairs", "image_size"]
 
@@ -41,7 +42,7 @@ def image_size(path: str | Path) -> tuple[int, int, int]:
     """
     try:
         with Image.open(path) as image:
-            width, height = image.size
+            height, width = upright_size(image)  # as read_image turns it (EXIF)
             gray = image.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "I;16L", "F")
             return height, width, 1 if gray else 3
     except Exception:  # noqa: BLE001 (any failure: read_image gives the message)

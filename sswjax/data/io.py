@@ -29,9 +29,11 @@ import numpy as np
 
 from sswjax._checks import check_floating, check_rank
 from sswjax._files import InputError, atomic_output, first_line, output_file, reason
+from sswjax.data.orientation import apply_orientation, read_stored
 
 __all__ = ["FLOAT_MAP_SUFFIXES", "InputError", "atomic_output", "disparity_to_rgb", "first_line",
-           "read_image", "read_pfm", "write_disparity_png", "write_float_map", "write_pfm"]
+           "read_image", "read_oriented", "read_pfm", "write_disparity_png", "write_float_map",
+           "write_pfm"]
 
 FLOAT_MAP_SUFFIXES = (".pfm", ".npy", ".tif", ".tiff")
 """The file name endings :func:`write_float_map` writes: PFM, NumPy's ``.npy``, float32 TIFF."""
@@ -92,11 +94,12 @@ def _read_png_16bit_colour(path: Path) -> np.ndarray | None:
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file (PNG, JPEG, ...) as gray or RGB.
+    """Read an image file (PNG, JPEG, ...) as gray or RGB, upright.
 
     Alpha channels are dropped (RGBA -> RGB, gray+alpha -> gray); a single channel
     ``(H, W, 1)`` becomes ``(H, W)``; 1-bit images become ``uint8`` 0/255. 16-bit PNGs keep
-    16 bits (colour ones need OpenCV, else they are read at 8 bits).
+    16 bits (colour ones need OpenCV, else they are read at 8 bits). The file's EXIF
+    orientation is applied (:mod:`sswjax.data.orientation`; :func:`read_oriented` says which).
 
     Parameters
     ----------
@@ -120,6 +123,11 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     >>> left.shape, left.dtype  # doctest: +SKIP
     ((497, 741, 3), dtype('uint8'))
     """
+    return read_oriented(path)[0]
+
+
+def read_oriented(path: str | os.PathLike) -> tuple[np.ndarray, int]:
+    """:func:`read_image`'s upright image and the EXIF orientation it applied (1: none)."""
     path = Path(path)
     if not path.exists():
         raise InputError(f"image not found: {path}")
@@ -128,7 +136,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
             # imageio's search for a plugin that can read an unknown file imports legacy
             # plugins, which warn about their own deprecation: noise for the user.
             warnings.simplefilter("ignore", DeprecationWarning)
-            image = np.asarray(iio.imread(path))
+            image, orientation = read_stored(path)
     except Exception as exc:  # imageio/Pillow raise many types for corrupt files
         raise InputError(f"cannot read image {path}: {_decode_failure(path, exc)}") from exc
     if image.ndim not in (2, 3) or image.size == 0:
@@ -144,7 +152,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         raise InputError(f"image {path} must be gray or RGB(A), got array shape {image.shape}")
     if image.dtype == bool:
         image = image.astype(np.uint8) * np.uint8(255)
-    return np.ascontiguousarray(image)
+    return np.ascontiguousarray(apply_orientation(image, orientation)), orientation
 
 
 # ----------------------------------------------------------------------------- PFM
