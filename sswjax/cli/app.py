@@ -7,14 +7,19 @@ temporary file and renamed into place, so an existing file survives a failed run
 with status 130; ``sswjax evaluate -o DIR`` writes each scene as soon as it is done, and its
 ``--resume`` continues an interrupted run without recomputing the finished scenes. A reader
 that stops early (``sswjax params --list | head -1``) ends the command quietly with status 141,
-as a tool killed by ``SIGPIPE`` reports to the shell (:data:`EXIT_BROKEN_PIPE`).
+as a tool killed by ``SIGPIPE`` reports to the shell (:data:`EXIT_BROKEN_PIPE`). A graph
+compiling (seconds, the first time a size, range or parameters are met) is said on stderr,
+``sswjax: compiling ...`` then ``sswjax: compiled in 6.2 s`` (the ``sswjax`` logger's ``INFO``
+lines, :mod:`sswjax.runtime.executables`), a terminal or not; ``--quiet`` leaves them out.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import importlib
+import logging
 import os
 import sys
 
@@ -66,6 +71,9 @@ def build_parser(commands: tuple[str, ...] = COMMANDS) -> argparse.ArgumentParse
     the parsed args)."""
     parser = Parser(prog="sswjax", description="Segment-Side-Window stereo matching in JAX.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--quiet", action="store_true",
+                        help="do not say on stderr when a graph compiles (sswjax: compiling "
+                             "..., then compiled in S s); notes and errors are still shown")
     parser.add_argument("--no-cache", action="store_true",
                         help="do not use the persistent compilation cache ($SSWJAX_CACHE_DIR, "
                              "default $XDG_CACHE_HOME/sswjax/xla, else ~/.cache/sswjax/xla)")
@@ -91,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv
     cache = None if args.no_cache else enable_compilation_cache()
     try:
-        with repairing_cache(cache), remembered_interrupts():
+        with repairing_cache(cache), remembered_interrupts(), _compile_lines(not args.quiet):
             status = args.run(args)
             sys.stdout.flush()  # a reader gone shows here, not in Python's exit
             return status
@@ -106,6 +114,41 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sswjax: {interrupt if isinstance(interrupt, Interrupted) else 'interrupted'}",
               file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+class _StderrLines(logging.Handler):
+    """Each record as a line ``sswjax: MESSAGE`` on the stderr of the moment; through
+    ``tqdm.write`` once tqdm is loaded (a progress bar may be there: it is redrawn below the
+    line, not cut), without importing it otherwise (start-up time)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        line = f"sswjax: {record.getMessage()}"
+        bars = sys.modules.get("tqdm")
+        try:
+            if bars is not None:
+                bars.tqdm.write(line, file=sys.stderr)
+            else:
+                print(line, file=sys.stderr, flush=True)
+        except Exception:  # noqa: BLE001 - logging's own policy: report, never raise
+            self.handleError(record)
+
+
+@contextlib.contextmanager
+def _compile_lines(shown: bool):
+    """Within it (``shown``), the ``sswjax`` logger's ``INFO`` lines (a graph compiling, its
+    time) go to stderr; the logger is as it was afterwards."""
+    if not shown:
+        yield
+        return
+    logger = logging.getLogger("sswjax")
+    handler, level = _StderrLines(logging.INFO), logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _reader_gone() -> int:

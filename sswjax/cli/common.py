@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
-import logging
 import os
 import shlex
 import signal
@@ -95,25 +94,10 @@ _RECEIVED: list[int] = []
 
 @contextlib.contextmanager
 def compile_notes():
-    """Show, for the block, what the package logs at ``INFO`` (the ``sswjax`` logger: that a
-    call is about to compile its graph, which takes seconds the first time an image size and
-    parameters are met) as ``sswjax: note: ...`` lines on stderr, when stderr is a terminal:
-    a person waits there, while a script reading stderr gets only what it got before (a bad
-    input's one line)."""
-    if not sys.stderr.isatty():
-        yield
-        return
-    logger = logging.getLogger("sswjax")
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("sswjax: note: %(message)s"))
-    level = logger.level
-    logger.addHandler(handler)
-    logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
+    """Kept for the commands that wrap their work in it: the command line now shows what the
+    package logs at ``INFO`` (a graph compiling, then its time) for every command, a terminal
+    or not (:mod:`sswjax.cli.app`), so this adds nothing."""
+    yield
 
 
 @contextlib.contextmanager

@@ -14,6 +14,14 @@ eviction compiles again, from the persistent compilation cache when that is on
 The API's entry points (:func:`sswjax.match`, :func:`sswjax.match_with_confidence`, the
 batches of :mod:`sswjax.api.batch`) go through it; :func:`sswjax.ssw_disparity` called
 directly is ``jax.jit``'s own and keeps what it compiles.
+
+A call that meets a graph this process does not hold (a new image size, range or parameters)
+compiles it, seconds of silence: it logs at ``INFO`` on the ``sswjax`` logger before
+(:func:`compiling_message`) and after (``compiled in 6.2 s``, the call's first run included).
+One whose executable is read from disk (:mod:`sswjax.runtime.stored`, a fraction of a second)
+logs nothing. The package gives the logger a ``NullHandler`` only: an application sees the
+lines once it configures logging (``logging.basicConfig(level=logging.INFO)``); the command
+line shows them on stderr (:mod:`sswjax.cli.app`).
 """
 
 from __future__ import annotations
@@ -22,22 +30,21 @@ import collections
 import functools
 import logging
 import os
+import time
 import types
 from collections.abc import Callable, Hashable, Sequence
 
 import jax
 import numpy as np
 
+from sswjax.config import PRESETS, Params
 from sswjax.runtime.stored import StoredGraph, graph_folder
 
-__all__ = ["COMPILING_UNCACHED", "DEFAULT_LIMIT", "EXECUTABLES", "BoundedJit", "ExecutableCache",
-           "bounded"]
+__all__ = ["DEFAULT_LIMIT", "EXECUTABLES", "BoundedJit", "ExecutableCache", "bounded",
+           "compiling_message"]
 
+logging.getLogger("sswjax").addHandler(logging.NullHandler())  # a library's only handler
 _LOG = logging.getLogger(__name__)
-COMPILING_UNCACHED = ("compiling the graph for this image size and these parameters: seconds "
-                      "(the compilation cache is off: again in every process)")
-"""The note logged (``logging.INFO``) when a stored function meets a new signature with the
-persistent cache off: the call compiles it."""
 
 DEFAULT_LIMIT = 32
 """Compiled graphs kept alive by default (``$SSWJAX_MAX_EXECUTABLES`` changes it): about 17,000
@@ -61,6 +68,56 @@ def _signature(args: tuple, kwargs: dict, static: Sequence[str]) -> Hashable:
     leaves, treedef = jax.tree_util.tree_flatten(traced)
     kinds = tuple((type(x), np.shape(x), str(getattr(x, "dtype", ""))) for x in leaves)
     return treedef, kinds, tuple((k, kwargs[k]) for k in static if k in kwargs)
+
+
+def _params_name(params: Params) -> str:
+    """A preset's name, or the preset nearest ``params`` with the stages that differ (up to
+    three: ``paper (segments off, aggregation changed)``), else ``custom parameters``.
+    Parameters being traced (a tracer among their leaves) are not compared."""
+    if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(params)):
+        return "custom parameters"
+    nearest = None
+    for name, entry in PRESETS.items():
+        changed = [slot for slot, config in params.stages()
+                   if config != getattr(entry.params, slot)]
+        if nearest is None or len(changed) < len(nearest[1]):
+            nearest = (name, changed)
+    if nearest is None or len(nearest[1]) > 3:
+        return "custom parameters"
+    name, changed = nearest
+    if not changed:
+        return name
+    words = [f"{slot} {'off' if getattr(params, slot) is None else 'changed'}"
+             for slot in changed]
+    return f"{name} ({', '.join(words)})"
+
+
+def compiling_message(fn: Callable, args: tuple, kwargs: dict) -> str:
+    """The line logged before a call compiles: what (the parameters, :func:`_params_name`),
+    for which image size (``W x H`` of the first image among ``args``, a batch ``(B, H, W,
+    C)`` as ``a batch of B pairs``) and range (``ndisp``); ``fn``'s name when the call holds
+    no parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> image = np.zeros((375, 450, 3), np.float32)
+    >>> compiling_message(None, (image, image), {"params": Params(), "ndisp": 64})
+    'compiling paper for 450x375, ndisp 64 (first call for this shape; cached for the next)'
+    """
+    values = [*args, *kwargs.values()]
+    params = next((value for value in values if isinstance(value, Params)), None)
+    what = getattr(fn, "__name__", "a graph") if params is None else _params_name(params)
+    image = next((value for value in args if len(np.shape(value)) in (2, 3, 4)), None)
+    words = [what]
+    if image is not None:
+        shape = np.shape(image)
+        height, width = (shape[1:3] if len(shape) == 4 else shape[:2])
+        batch = f"a batch of {shape[0]} pairs of " if len(shape) == 4 else ""
+        words.append(f"for {batch}{width}x{height}")
+    if isinstance(kwargs.get("ndisp"), int):
+        words[-1] += f", ndisp {kwargs['ndisp']}"
+    return f"compiling {' '.join(words)} (first call for this shape; cached for the next)"
 
 
 class ExecutableCache:
@@ -90,6 +147,9 @@ class ExecutableCache:
 
     def __len__(self) -> int:
         return len(self._entries)
+
+    def __contains__(self, key: Hashable) -> bool:
+        return key in self._entries
 
     def jitted(self, key: Hashable, make: Callable[[], Callable]) -> Callable:
         """The entry of ``key`` (made by ``make()`` on a miss), now the most recently used."""
@@ -138,18 +198,31 @@ class BoundedJit:
         self._stored = stored
         functools.update_wrapper(self, self._fn)
 
-    def _jit(self, args: tuple, kwargs: dict) -> Callable:
+    def _jit(self, args: tuple, kwargs: dict, announce: Callable[[], None]) -> Callable:
+        """A new entry: ``jax.jit`` of a copy, or a :class:`StoredGraph`; ``announce()`` is
+        called before anything is traced or compiled (not for an executable read from disk)."""
         folder = graph_folder() if self._stored else None
         if folder is None:
-            if self._stored:
-                _LOG.info(COMPILING_UNCACHED)
+            announce()
             return jax.jit(_fresh(self._fn), static_argnames=self._static)
-        return StoredGraph(self._fn, args, kwargs, static=self._static, folder=folder)
+        return StoredGraph(self._fn, args, kwargs, static=self._static, folder=folder,
+                           announce=announce)
 
     def __call__(self, *args, **kwargs):
         key = (self._fn, _signature(args, kwargs, self._static))
-        jitted = self._cache.jitted(key, lambda: self._jit(args, kwargs))
-        return jitted(*args, **kwargs)
+        if key in self._cache:
+            return self._cache.jitted(key, None)(*args, **kwargs)
+        started = []
+
+        def announce() -> None:
+            _LOG.info(compiling_message(self._fn, args, kwargs))
+            started.append(time.perf_counter())
+
+        jitted = self._cache.jitted(key, lambda: self._jit(args, kwargs, announce))
+        result = jitted(*args, **kwargs)
+        if started:
+            _LOG.info("compiled in %.1f s", time.perf_counter() - started[0])
+        return result
 
 
 def bounded(fn: Callable, *, static_argnames: Sequence[str], stored: bool = False

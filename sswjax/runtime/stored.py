@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import logging
 import os
 import pickle
 import platform
@@ -63,15 +62,10 @@ from jax.experimental import serialize_executable
 from sswjax.runtime.folder_bound import touch, trim
 from sswjax.runtime.lapack import calls_lapack, lowering_without_lapack, register_lapack
 
-__all__ = ["COMPILING", "StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
+__all__ = ["StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
            "graph_key", "host_digest", "source_digest"]
 
 _SUFFIX = ".jaxexport"
-_LOG = logging.getLogger(__name__)
-COMPILING = ("compiling the graph for this image size and these parameters: seconds, once "
-             "(kept in {folder} for later runs)")
-"""The note logged (``logging.INFO``, the ``sswjax`` logger) when a stored graph is missing and
-the call will trace it and, unless XLA's cache has it, compile it; the command line shows it."""
 _EXECUTABLE_SUFFIX = ".xlaexec"
 
 
@@ -255,6 +249,9 @@ class StoredGraph:
         The keyword arguments that are static (their values are in the graph).
     folder : Path
         Where graphs are stored (:func:`graph_folder`).
+    announce : callable, optional
+        Called (no arguments) before the graph is traced or compiled, i.e. unless its
+        executable is read from ``folder``: the caller's "compiling" log line.
 
     Attributes
     ----------
@@ -265,7 +262,7 @@ class StoredGraph:
     """
 
     def __init__(self, fn: Callable, args: tuple, kwargs: dict, *, static: Sequence[str],
-                 folder: Path):
+                 folder: Path, announce: Callable[[], None] | None = None):
         self._fn = fn
         self._fixed = {name: kwargs[name] for name in static if name in kwargs}
         leaves, self._treedef = self._flatten(args, kwargs, static)
@@ -279,6 +276,8 @@ class StoredGraph:
         self._call, self._compiled, self._trace_read, self._lapack = None, None, False, True
         self.executable_loaded = self._read_executable()
         if not self.executable_loaded:
+            if announce is not None:
+                announce()
             self._traced()
         self.loaded = self.executable_loaded or self._trace_read
 
@@ -299,7 +298,6 @@ class StoredGraph:
         if stored is not None:
             exported, self._lapack = stored
         else:
-            _LOG.info(COMPILING.format(folder=self._path.parent.parent))
             treedef, fixed, fn = self._treedef, self._fixed, self._fn
 
             def flat(*values):
