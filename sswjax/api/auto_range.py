@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from sswjax.api.geometry import Calibration, check_calibration
-from sswjax.api.images import checked_pair, prepare_pair
+from sswjax.api.images import checked_images, checked_pair
 from sswjax.config import preset
 from sswjax.graph import ssw_outputs
 from sswjax.runtime.buckets import ShapeBuckets
@@ -182,7 +182,7 @@ def coarse_disparities(left, right, *, max_ndisp: int | None = None) -> CoarseDi
 
     Parameters and errors as :func:`estimate_range`.
     """
-    left, right = prepare_pair(left, right)
+    left, right = checked_images(left, right, preset(COARSE))  # too small: said as such
     width = left.shape[1]
     limit = width // 2 if max_ndisp is None else int(max_ndisp)
     if not 1 <= limit < width:

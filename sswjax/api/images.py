@@ -14,7 +14,8 @@ import numpy as np
 from sswjax.config import Params
 from sswjax.stages.color import rgb_to_gray
 
-__all__ = ["checked_pair", "prepare_pair", "to_float_image"]
+__all__ = ["check_image_size", "checked_images", "checked_pair", "prepare_pair",
+           "to_float_image"]
 
 
 def to_float_image(image, *, name: str = "image") -> np.ndarray:
@@ -103,8 +104,51 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     return left, right
 
 
+def check_image_size(width: int, height: int, params: Params, *, where: str = "") -> None:
+    """Refuse images of ``width`` x ``height`` pixels smaller than the census window of
+    ``params``: the first check on a pair's size, before its range (an image 1 pixel wide
+    leaves no disparity to search, and this says why) and before any memory estimate.
+
+    ``where`` starts the message (e.g. ``"pair a.png: "``).
+
+    Raises
+    ------
+    ValueError
+        With a one-line message.
+
+    Examples
+    --------
+    >>> from sswjax.config import default_params
+    >>> check_image_size(1, 24, default_params())
+    Traceback (most recent call last):
+    ...
+    ValueError: images of 1x24 are smaller than the census window 9x7: both sides must be at least 9 pixels
+    """
+    census = (params.cost.census_width, params.cost.census_height)
+    if min(width, height) < max(census):
+        raise ValueError(
+            f"{where}images of {width}x{height} are smaller than the census window "
+            f"{census[0]}x{census[1]}: both sides must be at least {max(census)} pixels"
+        )
+
+
+def checked_images(left, right, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`prepare_pair` and :func:`check_image_size`: the checks of a pair that need no
+    range (those made before :func:`sswjax.api.auto_range.estimate_range` looks for one).
+
+    Returns
+    -------
+    (float32 (H, W, C), float32 (H, W, C)) with C in {1, 3}
+    """
+    left, right = prepare_pair(left, right)
+    check_image_size(left.shape[1], left.shape[0], params)
+    return left, right
+
+
 def checked_pair(left, right, ndisp, params: Params) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`prepare_pair` plus the checks of :func:`match` on ``ndisp`` and on the image size.
+    """:func:`checked_images` plus the checks of :func:`match` on ``ndisp``: the size is
+    checked first, so that an image too small for the census window is refused as such, not
+    with an empty range ``[1, 0]``.
 
     Returns
     -------
@@ -112,13 +156,7 @@ def checked_pair(left, right, ndisp, params: Params) -> tuple[np.ndarray, np.nda
     """
     if isinstance(ndisp, bool) or not isinstance(ndisp, (int, np.integer)):
         raise ValueError(f"ndisp must be an integer, got {ndisp!r}")
-    left, right = prepare_pair(left, right)
+    left, right = checked_images(left, right, params)
     if not 1 <= ndisp < left.shape[1]:
         raise ValueError(f"ndisp must be in [1, {left.shape[1] - 1}] for this width, got {ndisp}")
-    census = (params.cost.census_width, params.cost.census_height)
-    if min(left.shape[:2]) < max(census):
-        raise ValueError(
-            f"images of {left.shape[1]}x{left.shape[0]} are smaller than the census window "
-            f"{census[0]}x{census[1]}: both sides must be at least {max(census)} pixels"
-        )
     return left, right

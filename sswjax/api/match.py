@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from sswjax.api.auto_range import estimate_range
-from sswjax.api.images import checked_pair
+from sswjax.api.images import checked_images, checked_pair
 from sswjax.api.ranges import check_disparity_range, from_range_frame, range_frame
 from sswjax.config import Params, check_params, default_params
 from sswjax.graph import ssw_disparity, ssw_outputs
@@ -194,6 +194,7 @@ def match_graph(left, right, ndisp, *, graph, min_disp: int = 0, params: Params 
         if min_disp:
             raise ValueError("min_disp goes with a count of disparities: ndisp=None estimates "
                              "both")
+        checked_images(left, right, params)  # a pair too small is refused as such, first
         min_disp, ndisp = estimate_range(left, right)
     left, right = checked_pair(left, right, ndisp, params)
     check_disparity_range(left.shape[1], ndisp, min_disp)

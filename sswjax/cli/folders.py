@@ -30,6 +30,7 @@ from tqdm import tqdm
 
 from sswjax._files import InputError, first_line, same_file
 from sswjax._version import __version__
+from sswjax.api.images import check_image_size
 from sswjax.api.match import match
 from sswjax.cli.common import Interrupted, command_line, raise_if_interrupted, resume_command
 from sswjax.cli.distributed import (
@@ -163,8 +164,12 @@ def match_folders(args: argparse.Namespace) -> int:
         settings["carry_paths"] = False
     if getattr(args, "rectify", None) is not None:
         settings["rectify"] = [str(path) for path in args.rectify]
+    # The census window first: a pair too small is refused as such, not with a range [1, 0].
+    smallest = min(pairs, key=lambda p: min(p.size[:2]))
+    check_image_size(smallest.size[1], smallest.size[0], params, where=f"pair {smallest.name}: ")
     narrowest = min(pairs, key=lambda p: p.size[1])
-    if min_disp == 0 and not 1 <= args.ndisp < narrowest.size[1]:
+    given = min_disp == 0 or getattr(args, "depth_range", None) is None  # --ndisp N
+    if given and not 1 <= args.ndisp < narrowest.size[1]:
         raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
                          f"{narrowest.name}, got {args.ndisp}")
     remote = getattr(args, "scheduler", None) is not None

@@ -142,7 +142,7 @@ def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) ->
     if not isinstance(args.ndisp, int) or args.rectify is not None:
         return plan  # the range or the size comes from the images: guarded once they are read
     left, right = image_size(args.left), image_size(args.right)
-    if left[:2] == right[:2] and args.ndisp >= 1:  # else the matcher reports the problem
+    if left[:2] == right[:2] and 1 <= args.ndisp < left[1]:  # else the matcher reports it
         return guard_memory([(*left[:2], max(left[2], right[2]))], args.ndisp, params=params,
                             plan=plan, limit_gb=args.max_memory, min_disp=args.min_disp)
     return plan
