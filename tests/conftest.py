@@ -170,12 +170,14 @@ def middeval3() -> FakeMiddEval3:
 @pytest.fixture()
 def run_cli(capsys):
     """``run_cli(argv)``: ``(exit code, stdout, stderr)`` of ``sswjax.cli.main`` (arguments
-    converted to strings); argparse's usage errors give their exit code like the console script."""
+    converted to strings); argparse's usage errors give their exit code like the console script.
+    Run with ``--quiet``: whether a call compiles depends on what the process compiled before,
+    so the compile lines are left out (``tests/test_compile_log.py`` tests them)."""
     from sswjax.cli import main
 
     def run(argv):
         try:
-            code = main([str(a) for a in argv])
+            code = main(["--quiet", *(str(a) for a in argv)])
         except SystemExit as exit_:
             code = exit_.code
         captured = capsys.readouterr()

@@ -84,9 +84,17 @@ def _write_pair(texture, folder, width):
 
 
 def test_the_command_line_shows_the_compile_on_stderr_and_quiet_silences_it(texture, tmp_path,
-                                                                           run_cli):
+                                                                           capsys):
     """In process (stderr captured, not a terminal): the two lines, once each; ``--quiet``
-    (before the command, as ``--debug``) leaves stderr empty."""
+    (before the command, as ``--debug``) leaves stderr empty. (conftest's ``run_cli`` passes
+    ``--quiet``: ``main`` is called here as it is.)"""
+    from sswjax.cli import main
+
+    def run_cli(argv):
+        code = main([str(arg) for arg in argv])
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
     left, right = _write_pair(texture, tmp_path / "a", 44)
     code, out, err = run_cli(["match", left, right, "--ndisp", "8", *CHEAP_ARGS,
                               "-o", tmp_path / "a.pfm"])
