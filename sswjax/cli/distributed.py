@@ -1,8 +1,8 @@
 """``sswjax match ... --workers N`` or ``--scheduler ADDR``: the run on a Dask cluster.
 
 ``--workers N`` starts a cluster of N spawned single-threaded worker processes on this machine,
-each pinned to a core of its own, for the run (:func:`sswjax.cluster.workers.connect`) and
-closes it after;
+each pinned to a core of its own (N at most the cores here: more are capped, with a note), for
+the run (:func:`sswjax.cluster.workers.connect`) and closes it after, quietly;
 ``--scheduler tcp://HOST:8786`` uses a running one (``dask scheduler`` and ``dask worker``,
 or dask-jobqueue on PBS or SLURM), whose workers read the inputs and write the outputs at the
 same paths. The pairs of two folders are its tasks (:mod:`sswjax.cli.folders`, through
@@ -27,8 +27,8 @@ from sswjax.cluster.workers import INSTALL, connect, dashboard, require_distribu
 from sswjax.runtime.compilation import default_cache_dir
 from sswjax.runtime.plan import ExecutionPlan
 
-__all__ = ["cache_folder", "cluster_plan", "cluster_session", "require_cluster",
-           "shared_cores_note", "wants_cluster", "worker_budget"]
+__all__ = ["cache_folder", "capped_workers_note", "cluster_plan", "cluster_session",
+           "local_workers", "require_cluster", "wants_cluster", "worker_budget"]
 
 
 def wants_cluster(args: argparse.Namespace) -> bool:
@@ -52,49 +52,57 @@ def cache_folder(args: argparse.Namespace) -> str | None:
     return None if getattr(args, "no_cache", False) else str(default_cache_dir())
 
 
+def local_workers(args: argparse.Namespace) -> int:
+    """The workers ``--workers N`` starts: N, at most the cores this process may use
+    (:func:`~sswjax.cluster.cores.usable_cores`): each worker is pinned to a core, and two on
+    one core are no faster than one, with the memory of both (and a cluster of many more
+    processes than cores is slow to start and to close)."""
+    return max(1, min(args.workers, usable_cores()))
+
+
 def worker_budget(args: argparse.Namespace) -> tuple[int, bool, float | None]:
     """``(share, local, limit_gb)`` of the memory guard for the workers: ``--workers N``
-    share this machine's bound (``--max-memory`` or the memory available) N ways; the
-    workers of ``--scheduler`` are elsewhere, each bound by ``--max-memory`` (and, once
-    connected, by its own memory limit)."""
+    share this machine's bound (``--max-memory`` or the memory available) among the workers
+    started (:func:`local_workers`); the workers of ``--scheduler`` are elsewhere, each bound
+    by ``--max-memory`` (and, once connected, by its own memory limit)."""
     if getattr(args, "scheduler", None) is not None:
         return 1, False, args.max_memory
-    return args.workers, True, args.max_memory
+    return local_workers(args), True, args.max_memory
 
 
-def shared_cores_note(workers: int, cores: int) -> str | None:
-    """The line that says ``--workers N`` asks for more workers than the machine has cores
-    (None when it does not). Each worker is pinned to a core (the slots wrap around), so two
-    on one core share it: no faster than one per core, and with the memory of both.
+def capped_workers_note(workers: int, cores: int) -> str | None:
+    """The line that says ``--workers N`` asks for more workers than the cores here, and how
+    many are started (None when it does not).
 
     Examples
     --------
-    >>> shared_cores_note(2, 2) is None
+    >>> capped_workers_note(2, 2) is None
     True
-    >>> shared_cores_note(3, 2)
-    'sswjax: note: --workers 3 on 2 cores: some workers share a core, no faster than --workers 2'
+    >>> capped_workers_note(64, 2)
+    'sswjax: note: --workers 64 is more than the 2 cores here: using 2'
     """
     if workers <= cores:
         return None
-    return (f"sswjax: note: --workers {workers} on {cores} cores: some workers share a core, "
-            f"no faster than --workers {cores}")
+    return f"sswjax: note: --workers {workers} is more than the {cores} cores here: using {cores}"
 
 
 @contextlib.contextmanager
 def cluster_session(args: argparse.Namespace) -> Iterator[object]:
     """A ``distributed.Client`` for the run (``--workers`` or ``--scheduler``), closed after
-    it, with a line on stderr naming its workers and dashboard."""
+    it, quietly, with a line on stderr naming its workers and dashboard. ``--workers N`` above
+    the cores here starts one worker per core, with a note (:func:`local_workers`)."""
     require_cluster(args)
+    workers = None
     if getattr(args, "scheduler", None) is None:
-        note = shared_cores_note(args.workers, usable_cores())
+        workers = local_workers(args)
+        note = capped_workers_note(args.workers, usable_cores())
         if note:
             print(note, file=sys.stderr)
-    with connect(workers=getattr(args, "workers", None),
-                 scheduler=getattr(args, "scheduler", None)) as client:
-        workers = len(client.nthreads())
+    with connect(workers=workers, scheduler=getattr(args, "scheduler", None)) as client:
+        count = len(client.nthreads())
         link = dashboard(client)
         shown = f"; dashboard {link}" if link else " (no dashboard: pip install bokeh)"
-        print(f"sswjax: note: {workers} Dask workers at {client.scheduler.address}{shown}",
+        print(f"sswjax: note: {count} Dask workers at {client.scheduler.address}{shown}",
               file=sys.stderr)
         yield client
 

@@ -16,6 +16,9 @@ Eigen and the BLAS libraries on one thread too. Every task enables the persisten
 cache in the folder it is given (:func:`prepare_worker`), once per process: a shape compiled by
 one worker is read from the shared folder by the others.
 
+A cluster that :func:`connect` starts is closed quietly: a worker still busy when it closes is
+killed by its nanny, and neither that nor the worker's own records reach stderr.
+
 ``distributed`` is an optional dependency (``pip install "sswjax[distributed]"``): it is
 imported by the functions that need it, and :func:`require_distributed` says what to install.
 """
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import logging
 import os
 from collections.abc import Iterator, Mapping
 
@@ -171,9 +175,34 @@ def connect(*, workers: int | None = None, scheduler: str | None = None,
             pin_workers(client)
             yield client
         finally:
-            client.close()
+            with _quiet_close(client):
+                client.close()
     finally:
-        cluster.close()
+        with _quiet_close(None):
+            cluster.close()
+
+
+def _silence_logs() -> None:
+    """In a worker about to be closed: no more log records (run by :func:`_quiet_close`)."""
+    logging.disable(logging.CRITICAL)
+
+
+@contextlib.contextmanager
+def _quiet_close(client) -> Iterator[None]:
+    """The closing of a cluster this process started, without its log records on stderr: a
+    worker still busy (Ctrl-C, an error, a task cancelled) is killed by its nanny after a few
+    seconds, and the nanny here and the worker there each log it (with many workers on few
+    cores, hundreds of lines and tracebacks). The workers of ``client`` (None: none left to
+    tell) stop logging, and this process's records are dropped during the block."""
+    if client is not None:
+        with contextlib.suppress(Exception):  # a worker gone already: nothing to silence
+            client.run(_silence_logs)
+    before = logging.root.manager.disable
+    logging.disable(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logging.disable(before)
 
 
 def prepare_worker(cache: str | None) -> None:
