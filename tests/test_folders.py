@@ -178,8 +178,9 @@ def test_bad_folders_one_line_exit_2_nothing_written(folders, tmp_path, run_cli,
     elif case == "no-common-names":
         for path in right.iterdir():
             path.rename(right / f"x-{path.name}")
-    elif case == "sizes-differ":
-        iio.imwrite(right / "c.png", texture(5, (24, 41, 3)))
+    elif case == "sizes-differ":  # a bad pair refuses the run with --strict only
+        iio.imwrite(right / "c.png", texture(5, (24, 41, 3)))  # (tests/test_folder_runs.py)
+        argv.append("--strict")
     elif case == "stem-clash":
         for folder in (left, right):
             iio.imwrite(folder / "c.jpg", texture(5, (24, 40, 3)))

@@ -2,14 +2,18 @@
 
 The image files of the same name in both folders are pairs (:func:`folder_pairs`); each gives
 ``OUT_DIR/<stem>.pfm``. Everything that can fail on the user's input is checked before the
-first pair runs, from the files' headers: the folders, the names, each pair's sizes, ``ndisp``
-against every width, the output folder (neither LEFT_DIR nor RIGHT_DIR), and the memory
-estimate of the largest shape (:mod:`sswjax.cli.guard`). Pairs run sorted by shape (the
-bucketed shape with ``--bucket``), so each shape compiles once; each map is written atomically
-as soon as it is done, so Ctrl-C keeps the finished ones and ``--resume`` skips them. A pair
-that fails on its files (a truncated image, say) is named and the others go on; the summary
-says how many were written, kept and failed, and any failure ends the run with one line
-naming the failed pairs (exit status 2).
+first pair runs, from the files' headers: the folders, the names, each pair's images (readable,
+of one size), ``ndisp`` against every width, the output folder (neither LEFT_DIR nor
+RIGHT_DIR, and no other run's: the run holds its lock, :func:`sswjax.cli.record.lock_folder`),
+and the memory estimate of the largest shape (:mod:`sswjax.cli.guard`). A bad pair is named
+on a line of its own and the good ones are matched (``--strict``: the run is refused); what is
+wrong with the run as a whole is refused in one line before anything is written. Pairs run
+sorted by shape (the bucketed shape with ``--bucket``), so each shape compiles once; each map
+is written atomically as soon as it is done, so Ctrl-C keeps the finished ones and ``--resume``
+skips those written with the same settings. A pair that fails on its files later (a truncated
+image, say) is named too and the others go on; the summary says how many were written, kept
+and failed, and any failure ends the run with one line ``N of M maps written; K pairs failed:
+a.png, ...`` (exit status 2).
 
 With ``--workers N`` or ``--scheduler ADDR`` each pair is a task of a Dask cluster
 (:mod:`sswjax.cli.distributed`): the workers write the maps, this process alone the run's
@@ -42,10 +46,11 @@ from sswjax.cli.distributed import (
 )
 from sswjax.cli.guard import guard_memory
 from sswjax.cli.options import params_from_args, plan_from_args
-from sswjax.cli.record import RunRecord
+from sswjax.cli.record import RunRecord, describe_holder, lock_folder
 from sswjax.cli.rectify import rectify_images
 from sswjax.cluster.folders import match_pairs
-from sswjax.cluster.pairs import IMAGE_SUFFIXES, FolderPair, folder_pairs, image_size
+from sswjax.cluster.pairs import (IMAGE_SUFFIXES, FolderPair, bad_pairs_error, checked_pairs,
+                                  folder_pairs, image_size)
 from sswjax.cluster.tasks import BAD_INPUT, PairJob, PairOutcome
 from sswjax.cluster.workers import worker_memory
 from sswjax.data.io import read_image, read_pfm, write_pfm
@@ -145,13 +150,45 @@ def _guard(args, pairs, params, plan, min_disp, client=None):
                         min_disp=min_disp, share=share, local=local)
 
 
+def _refuse_narrow(args, pairs, min_disp, params) -> None:
+    """``ndisp`` must fit the narrowest pair: a setting of the run, refused as a whole (after
+    the census window, which the smallest pair must hold: an image 1 pixel wide is too small,
+    not a reason for an empty range)."""
+    smallest = min(pairs, key=lambda p: min(p.size[:2]))
+    check_image_size(smallest.size[1], smallest.size[0], params, where=f"pair {smallest.name}: ")
+    narrowest = min(pairs, key=lambda p: p.size[1])
+    given = min_disp == 0 or getattr(args, "depth_range", None) is None  # --ndisp N
+    if given and not 1 <= args.ndisp < narrowest.size[1]:
+        raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
+                         f"{narrowest.name}, got {args.ndisp}")
+
+
+def _summary_error(saved: int, total: int, failed: dict[str, str]) -> InputError:
+    """The run's last line when pairs failed: how many maps are there, which pairs failed."""
+    names = sorted(failed)
+    return InputError(f"{saved} of {total} maps written; {len(names)} "
+                      f"pair{'s' if len(names) > 1 else ''} failed: {', '.join(names)} "
+                      "(--resume matches the failed ones again)")
+
+
 def match_folders(args: argparse.Namespace) -> int:
-    """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket]
-    [--workers N | --scheduler ADDR]``; returns the exit status (0; a failed pair raises)."""
+    """``sswjax match LEFT_DIR RIGHT_DIR --ndisp N -o OUT_DIR [--resume] [--bucket] [--strict]
+    [--workers N | --scheduler ADDR]``; returns the exit status (0; when a pair failed, the
+    others written, it raises ``InputError``: exit status 2).
+
+    The pairs are checked first (:func:`~sswjax.cluster.pairs.checked_pairs`): a bad pair (an
+    image that cannot be read, two sizes) is named on a line of its own and the good ones are
+    matched; ``--strict`` refuses the whole run instead, before anything is written. What is
+    wrong with the run as a whole (the folders, the names, ``ndisp`` against the narrowest
+    pair, the memory, the output folder, another run holding it) is refused in one line.
+    """
     out = _check_arguments(args)
     params, execution = params_from_args(args)
     min_disp = getattr(args, "min_disp", 0) or 0
-    pairs = folder_pairs(args.left, args.right)
+    pairs, bad = checked_pairs(args.left, args.right)
+    if bad and getattr(args, "strict", False):
+        raise bad_pairs_error(bad)
+    total = len(pairs) + len(bad)
     buckets = _buckets(args, pairs)
     plan = plan_from_args(args, execution, buckets=buckets)
     settings = {"command": "match", "version": __version__, "params": params.to_dict(),
@@ -164,17 +201,15 @@ def match_folders(args: argparse.Namespace) -> int:
         settings["carry_paths"] = False
     if getattr(args, "rectify", None) is not None:
         settings["rectify"] = [str(path) for path in args.rectify]
-    # The census window first: a pair too small is refused as such, not with a range [1, 0].
-    smallest = min(pairs, key=lambda p: min(p.size[:2]))
-    check_image_size(smallest.size[1], smallest.size[0], params, where=f"pair {smallest.name}: ")
-    narrowest = min(pairs, key=lambda p: p.size[1])
-    given = min_disp == 0 or getattr(args, "depth_range", None) is None  # --ndisp N
-    if given and not 1 <= args.ndisp < narrowest.size[1]:
-        raise ValueError(f"ndisp must be in [1, {narrowest.size[1] - 1}] for the narrowest pair "
-                         f"{narrowest.name}, got {args.ndisp}")
     remote = getattr(args, "scheduler", None) is not None
-    if not remote:  # a remote cluster's memory is known once connected
-        plan = _guard(args, pairs, params, plan, min_disp)
+    if pairs:
+        _refuse_narrow(args, pairs, min_disp, params)
+        if not remote:  # a remote cluster's memory is known once connected
+            plan = _guard(args, pairs, params, plan, min_disp)
+    for name in sorted(bad):  # the run goes on: each bad pair on a line of its own
+        print(f"sswjax: error: {bad[name]}", file=sys.stderr)
+    if not pairs:
+        raise _summary_error(0, total, bad)
 
     def shape(pair):
         height, width = pair.size[:2]
@@ -183,16 +218,26 @@ def match_folders(args: argparse.Namespace) -> int:
 
     pairs.sort(key=shape)
     out.mkdir(exist_ok=True)
+    with lock_folder(out) as lock:
+        if lock.stale is not None:
+            print(f"sswjax: note: {out} was locked by a run that is no longer running "
+                  f"({describe_holder(lock.stale)}): taking the lock over", file=sys.stderr)
+        return _run(args, out, pairs, bad, total, settings, shape, params=params, plan=plan,
+                    min_disp=min_disp, remote=remote)
+
+
+def _run(args, out, pairs, bad, total, settings, shape, *, params, plan, min_disp, remote):
+    """The pairs matched into ``out`` (locked), the record kept, the summary said."""
     record = (RunRecord.resume if args.resume else RunRecord.start)(out, settings)
     jobs = [PairJob(p.name, str(p.left), str(p.right), str(out / f"{Path(p.name).stem}.pfm"))
             for p in pairs]
     todo = [job for job, pair in zip(jobs, pairs)
             if not (record.done(Path(job.output).name) and _finished(Path(job.output), pair.size))]
-    start, resumed, failed = time.perf_counter(), len(pairs) - len(todo), {}
+    start, resumed, failed = time.perf_counter(), len(pairs) - len(todo), dict(bad)
     saved, workers = resumed, 0
     session = cluster_session(args) if wants_cluster(args) and todo else contextlib.nullcontext()
     try:
-        with session as client, tqdm(total=len(pairs), initial=resumed, desc="pairs",
+        with session as client, tqdm(total=total, initial=resumed + len(bad), desc="pairs",
                                      unit="pair", file=sys.stderr) as bar:
             if client is None:
                 outcomes = _in_process(todo, ndisp=args.ndisp, min_disp=min_disp, params=params,
@@ -209,11 +254,12 @@ def match_folders(args: argparse.Namespace) -> int:
                     record.finished(f"{Path(outcome.name).stem}.pfm")
                     saved += 1
                 else:
-                    failed[outcome.name] = outcome.message
+                    failed[outcome.name] = f"pair {outcome.name}: {outcome.message}"
+                    bar.write(f"sswjax: error: {failed[outcome.name]}", file=sys.stderr)
                 bar.update(1)
                 raise_if_interrupted()  # a Ctrl-C that JAX's gc callback dropped
     except KeyboardInterrupt:
-        raise Interrupted(f"interrupted; {saved} of {len(pairs)} disparity maps are saved in "
+        raise Interrupted(f"interrupted; {saved} of {total} disparity maps are saved in "
                           f"{out}; continue with: {resume_command(command_line(args))}") from None
     note = f", {resumed} kept from before" if resumed else ""
     note += f", {len(failed)} failed" if failed else ""
@@ -222,7 +268,5 @@ def match_folders(args: argparse.Namespace) -> int:
           f"({len({shape(p)[0] for p in pairs})} shapes, {time.perf_counter() - start:.1f} s"
           f"{where})")
     if failed:
-        listed = "; ".join(f"{name}: {why}" for name, why in sorted(failed.items()))
-        raise InputError(f"{len(failed)} of {len(pairs)} pairs failed, the others are written "
-                         f"(--resume matches the failed ones again): {listed}")
+        raise _summary_error(saved, total, failed)
     return 0

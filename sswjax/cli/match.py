@@ -94,6 +94,9 @@ def add_match_command(commands) -> None:
                         help="folders: pad pairs to a few bucketed shapes (fewer compilations, the "
                              "same maps, warm runs slower by the padding's work); by default "
                              "only when the pairs come in more than 8 sizes")
+    parser.add_argument("--strict", action="store_true",
+                        help="folders: refuse the whole run when a pair is bad (by default the "
+                             "bad pairs are named and the others matched)")
     parser.add_argument("--png", type=Path, help="also write a colour-mapped PNG")
     add_confidence_options(parser)
     add_geometry_options(parser)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 from sswjax._files import first_line
 from sswjax.api.match import resolve_plan
-from sswjax.cluster.pairs import folder_pairs
+from sswjax.cluster.pairs import bad_pairs_error, checked_pairs
 from sswjax.cluster.tasks import PairJob, PairOutcome, match_pair
 from sswjax.cluster.workers import require_distributed
 from sswjax.config import Params, check_params, default_params
@@ -85,10 +85,11 @@ def match_pairs(client, jobs: Sequence[PairJob], ndisp: int, *, min_disp: int = 
 def match_folder(client, left_dir, right_dir, out_dir, ndisp: int, *, min_disp: int = 0,
                  params: Params | None = None, plan: ExecutionPlan | None = None,
                  cache: str | None = None, retries: int = 1,
-                 skip: Iterable[str] = ()) -> FolderSummary:
+                 skip: Iterable[str] = (), strict: bool = False) -> FolderSummary:
     """The pairs of two folders (the images of the same name,
-    :func:`sswjax.cluster.pairs.folder_pairs`) matched on ``client``'s cluster, each map
-    written to ``out_dir/<stem>.pfm`` (created) by its worker.
+    :func:`sswjax.cluster.pairs.checked_pairs`) matched on ``client``'s cluster, each map
+    written to ``out_dir/<stem>.pfm`` (created) by its worker; a bad pair is named in the
+    summary's ``failed`` and the others go on.
 
     Parameters
     ----------
@@ -99,6 +100,10 @@ def match_folder(client, left_dir, right_dir, out_dir, ndisp: int, *, min_disp: 
         As for :func:`match_pairs`.
     skip : iterable of str
         Names of pairs not to match (done before).
+    strict : bool
+        Refuse the folders (``InputError``, one line, before any task) when a pair is bad; by
+        default a bad pair (an image that cannot be read, two sizes) is in ``failed`` with why
+        (``"pair NAME: ..."``) and the others are matched.
 
     Returns
     -------
@@ -112,12 +117,14 @@ def match_folder(client, left_dir, right_dir, out_dir, ndisp: int, *, min_disp: 
     ...     summary = match_folder(client, "left", "right", "out", 64)
     """
     out = Path(out_dir)
-    out.mkdir(exist_ok=True)
     skip = set(skip)
-    pairs = folder_pairs(left_dir, right_dir)
+    pairs, bad = checked_pairs(left_dir, right_dir)
+    if bad and strict:
+        raise bad_pairs_error(bad)
+    out.mkdir(exist_ok=True)
     jobs = [PairJob(p.name, str(p.left), str(p.right), str(out / f"{Path(p.name).stem}.pfm"))
             for p in sorted(pairs, key=lambda p: (p.size, p.name)) if p.name not in skip]
-    written, failed = [], {}
+    written, failed = [], {name: why for name, why in bad.items() if name not in skip}
     for outcome in match_pairs(client, jobs, ndisp, min_disp=min_disp, params=params, plan=plan,
                                cache=cache, retries=retries):
         if outcome.ok:

@@ -1,5 +1,9 @@
 """The pairs of two folders: the image files of the same name in both, with their sizes read
-from the headers (what a folder run checks before it matches anything)."""
+from the headers (what a folder run checks before it matches anything).
+
+:func:`checked_pairs` separates the good pairs from the bad ones (an image that cannot be read,
+two sizes), so that a run can match the good ones and name the others; :func:`folder_pairs`
+refuses the folders when any pair is bad (``--strict``)."""
 
 from __future__ import annotations
 
@@ -9,11 +13,12 @@ from typing import NamedTuple
 
 from PIL import Image
 
-from sswjax._files import InputError
+from sswjax._files import InputError, first_line
 from sswjax.data.io import read_image
 from sswjax.data.orientation import upright_size
 
-__all__ = ["IMAGE_SUFFIXES", "FolderPair", "folder_pairs", "image_size"]
+__all__ = ["IMAGE_SUFFIXES", "FolderPair", "bad_pairs_error", "checked_pairs", "folder_pairs",
+           "image_size"]
 
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".ppm", ".pgm", ".pbm", ".pnm", ".bmp",
                             ".tif", ".tiff", ".webp"})
@@ -55,19 +60,23 @@ def _images(folder: Path) -> dict[str, Path]:
             if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".") and p.is_file()}
 
 
-def folder_pairs(left_dir: str | Path, right_dir: str | Path) -> list[FolderPair]:
-    """The image files of the same name in both folders, with their sizes, sorted by name.
+def checked_pairs(left_dir: str | Path, right_dir: str | Path
+                  ) -> tuple[list[FolderPair], dict[str, str]]:
+    """The good pairs of two folders (the image files of the same name in both, with their
+    sizes, sorted by name) and the bad ones: name -> why, one line starting ``pair NAME:`` (an
+    image that cannot be read, a left and a right image of two sizes).
 
     Raises
     ------
     InputError
-        If no name is common to both, two common names share a stem (their outputs would
-        collide), or a pair's images differ in size (one line each).
+        For the folders as a whole: no name is common to both, or two common names share a
+        stem (their outputs would collide).
 
     Examples
     --------
-    >>> [p.name for p in folder_pairs("left", "right")]  # doctest: +SKIP
-    ['a.png', 'b.png']
+    >>> good, bad = checked_pairs("left", "right")       # doctest: +SKIP
+    >>> [p.name for p in good], bad                      # doctest: +SKIP
+    (['a.png'], {'b.png': 'pair b.png: cannot read image left/b.png: not an image file ...'})
     """
     left_dir, right_dir = Path(left_dir), Path(right_dir)
     lefts, rights = _images(left_dir), _images(right_dir)
@@ -80,12 +89,54 @@ def folder_pairs(left_dir: str | Path, right_dir: str | Path) -> list[FolderPair
     if clash:
         raise InputError(f"images {', '.join(clash)} in {left_dir} would write the same "
                          f"{Path(clash[0]).stem}.pfm: rename one")
-    pairs = []
+    pairs, bad = [], {}
     for name in names:
-        left, right = image_size(lefts[name]), image_size(rights[name])
+        try:
+            left, right = image_size(lefts[name]), image_size(rights[name])
+        except (ValueError, OSError) as error:  # read_image's InputError, one line
+            bad[name] = f"pair {name}: {first_line(error)}"
+            continue
         if left[:2] != right[:2]:
-            raise InputError(f"pair {name}: left {left[1]}x{left[0]} and right "
-                             f"{right[1]}x{right[0]} differ in size")
+            bad[name] = (f"pair {name}: left {left[1]}x{left[0]} and right "
+                         f"{right[1]}x{right[0]} differ in size")
+            continue
         pairs.append(FolderPair(name, lefts[name], rights[name],
                                 (left[0], left[1], max(left[2], right[2]))))
+    return pairs, bad
+
+
+def bad_pairs_error(bad: dict[str, str]) -> InputError:
+    """The one-line refusal of folders with the bad pairs ``bad`` (as :func:`checked_pairs`
+    gives them): the first named with why, the others counted and named.
+
+    Examples
+    --------
+    >>> str(bad_pairs_error({"b.png": "pair b.png: unreadable", "c.png": "pair c.png: sizes"}))
+    'pair b.png: unreadable; 1 more bad pair: c.png'
+    """
+    first, *others = sorted(bad)
+    more = (f"; {len(others)} more bad pair{'s' if len(others) > 1 else ''}: "
+            f"{', '.join(others)}" if others else "")
+    return InputError(f"{bad[first]}{more}")
+
+
+def folder_pairs(left_dir: str | Path, right_dir: str | Path) -> list[FolderPair]:
+    """The image files of the same name in both folders, with their sizes, sorted by name;
+    every pair must be good (:func:`checked_pairs` takes the good ones and names the others).
+
+    Raises
+    ------
+    InputError
+        If no name is common to both, two common names share a stem (their outputs would
+        collide), or a pair is bad: an image cannot be read, or the two differ in size (one
+        line, :func:`bad_pairs_error`).
+
+    Examples
+    --------
+    >>> [p.name for p in folder_pairs("left", "right")]  # doctest: +SKIP
+    ['a.png', 'b.png']
+    """
+    pairs, bad = checked_pairs(left_dir, right_dir)
+    if bad:
+        raise bad_pairs_error(bad)
     return pairs
