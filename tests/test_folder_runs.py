@@ -70,7 +70,11 @@ def test_a_folder_in_use_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path,
     try:
         assert holder.stdout.readline() == "held\n"
         argv = ["match", left, right, "--ndisp", NDISP, "-o", out, *CHEAP]
+        for folder in (left, right):  # a bad pair: not named, the run is refused first
+            (folder / "c.png").write_text("not an image\n")
         code, stdout, stderr = run_cli(argv)
+        for folder in (left, right):
+            (folder / "c.png").unlink()
         assert (code, stdout) == (2, ""), stderr
         assert stderr.count("\n") == 1, stderr
         assert stderr.startswith(f"sswjax: error: {out} is in use by another sswjax run "

@@ -163,6 +163,12 @@ def _refuse_narrow(args, pairs, min_disp, params) -> None:
                          f"{narrowest.name}, got {args.ndisp}")
 
 
+def _name_bad_pairs(bad: dict[str, str]) -> None:
+    """Each bad pair on a line of its own (stderr), the run going on without them."""
+    for name in sorted(bad):
+        print(f"sswjax: error: {bad[name]}", file=sys.stderr)
+
+
 def _summary_error(saved: int, total: int, failed: dict[str, str]) -> InputError:
     """The run's last line when pairs failed: how many maps are there, which pairs failed."""
     names = sorted(failed)
@@ -206,9 +212,8 @@ def match_folders(args: argparse.Namespace) -> int:
         _refuse_narrow(args, pairs, min_disp, params)
         if not remote:  # a remote cluster's memory is known once connected
             plan = _guard(args, pairs, params, plan, min_disp)
-    for name in sorted(bad):  # the run goes on: each bad pair on a line of its own
-        print(f"sswjax: error: {bad[name]}", file=sys.stderr)
     if not pairs:
+        _name_bad_pairs(bad)
         raise _summary_error(0, total, bad)
 
     def shape(pair):
@@ -222,6 +227,7 @@ def match_folders(args: argparse.Namespace) -> int:
         if lock.stale is not None:
             print(f"sswjax: note: {out} was locked by a run that is no longer running "
                   f"({describe_holder(lock.stale)}): taking the lock over", file=sys.stderr)
+        _name_bad_pairs(bad)  # once the run is sure to go on
         return _run(args, out, pairs, bad, total, settings, shape, params=params, plan=plan,
                     min_disp=min_disp, remote=remote)
 
