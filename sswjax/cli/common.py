@@ -196,15 +196,17 @@ def interrupt_flag():
 
 
 def resume_command(argv: list[str]) -> str:
-    """The user's command line with ``--resume`` added (once), quoted for a shell.
+    """The user's command line with ``--resume`` added (once) and ``--overwrite`` dropped (the
+    run to continue is the one it started), quoted for a shell.
 
     Examples
     --------
-    >>> resume_command(["evaluate", "-o", "my runs"])
+    >>> resume_command(["evaluate", "-o", "my runs", "--overwrite"])
     "sswjax evaluate -o 'my runs' --resume"
     >>> resume_command(["match", "L", "R", "--resume"])
     'sswjax match L R --resume'
     """
+    argv = [arg for arg in argv if arg != "--overwrite"]
     return shlex.join(["sswjax", *argv] + ([] if "--resume" in argv else ["--resume"]))
 
 

@@ -14,7 +14,11 @@ scores the others (MiddEval3's weights then renormalised over them) and reports 
 
 With ``-o``, each scene's disparity and time are written as soon as the scene is done, so
 Ctrl-C keeps the finished scenes and ``--resume`` continues without recomputing them (their
-disparities are read back and their metrics recomputed). With ``--bucket`` the SSW methods
+disparities are read back and their metrics recomputed). A folder that is not empty is refused
+without ``--resume`` (an earlier run's method folders would stay beside the new tables) or
+``--overwrite``, which removes first what the earlier run's record lists and its summaries
+(:data:`SUMMARIES`), never other files. The optional packages the options need (matplotlib for
+``--figure``, a peer's) are checked before any scene is read. With ``--bucket`` the SSW methods
 are :class:`~sswjax.evaluation.methods.BucketedSSW`: their scenes run grouped by bucket, one
 pair per JAX device per call, and a scene's time is its call's time divided by the pairs in it.
 """
@@ -22,6 +26,8 @@ pair per JAX device per call, and a scene's time is its call's time divided by t
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 from pathlib import Path
 
@@ -34,18 +40,22 @@ from sswjax.cli.common import (Interrupted, command_line, raise_if_interrupted, 
                                uninterrupted)
 from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
                                 params_from_args)
-from sswjax.cli.record import RunRecord
+from sswjax.cli.record import RECORD_NAME, RunRecord
 from sswjax.cli.scenes import Problems, checked_scenes, ndisp_line, skipped_markdown
 from sswjax.data.io import read_pfm, write_pfm
 from sswjax.data.layouts import StereoScene, detect_layout, find_data_root
-from sswjax.evaluation.figures import comparison_figure
-from sswjax.evaluation.methods import make_method, method_summaries, submission_name
+from sswjax.evaluation.figures import check_matplotlib, comparison_figure
+from sswjax.evaluation.methods import (check_dependencies, make_method, method_summaries,
+                                       submission_name)
 from sswjax.evaluation.runner import (SCORINGS, SceneResult, Scoring, evaluate_scene,
                                       iter_evaluate_scenes, markdown_table, summary_markdown,
                                       table1_markdown, write_metrics_csv)
 from sswjax.runtime.buckets import ShapeBuckets
 
-__all__ = ["add_evaluate_command", "run_evaluate"]
+__all__ = ["SUMMARIES", "add_evaluate_command", "run_evaluate"]
+
+SUMMARIES = ("results.md", "metrics.csv", "comparison.png")
+"""What a run with ``-o`` writes at its end, beside its record's scene results."""
 
 
 def _methods_help() -> str:
@@ -103,6 +113,11 @@ def add_evaluate_command(commands) -> None:
     parser.add_argument("--resume", action="store_true",
                         help="continue an interrupted run: keep the scenes already in -o "
                              "(disparity and time files) instead of recomputing them")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier run in -o: first remove what its record "
+                             f"({RECORD_NAME}) lists and its {', '.join(SUMMARIES)}, never "
+                             "other files (without it or --resume, a folder that is not empty "
+                             "is refused)")
     parser.set_defaults(run=run_evaluate)
 
 
@@ -140,6 +155,56 @@ def _saved_scene_result(folder: Path, tag: str, scene: StereoScene, scoring: Sco
         return None, f"saved time {seconds} in {time_file.name} is not valid, recomputing"
     result = evaluate_scene(lambda left, right, ndisp: disparity, scene, scoring=scoring)
     return result._replace(seconds=seconds), None
+
+
+def _earlier_outputs(folder: Path | None, *, resume: bool, overwrite: bool) -> list[Path]:
+    """The files of an earlier run in ``folder`` that this run removes before it starts (with
+    ``--overwrite``; none otherwise).
+
+    Raises ``ValueError`` (one line) for a folder that is not empty without ``--resume`` or
+    ``--overwrite``, and with ``--overwrite`` for one without the record of an evaluate run.
+    """
+    if folder is None or resume or not folder.exists():
+        return []
+    if not folder.is_dir():
+        raise ValueError(f"output {folder} is a file: -o names a folder")
+    if next(folder.iterdir(), None) is None:
+        return []
+    if not overwrite:
+        raise ValueError(f"{folder} is not empty: add --resume to continue its run or "
+                         "--overwrite to replace what an earlier run wrote there")
+    try:
+        stored = json.loads((folder / RECORD_NAME).read_text(encoding="utf-8"))
+        command = stored["settings"]["command"]
+        finished = list(stored["maps"] if "maps" in stored else stored["finished"])  # names
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError):
+        command, finished = None, []
+    if command != "evaluate":
+        raise ValueError(f"{folder} holds no record of an earlier sswjax evaluate run "
+                         f"({RECORD_NAME}): --overwrite replaces only what such a run wrote; "
+                         "empty the folder or choose another")
+    paths = [folder / name for name in SUMMARIES]
+    for entry in finished:  # "method/scene", as run_evaluate records them
+        parts = entry.split("/") if isinstance(entry, str) else []
+        if len(parts) != 2 or any(part in ("", ".", "..") or os.sep in part for part in parts):
+            continue
+        method, scene = parts
+        tag = submission_name(method)
+        paths += [folder / method / scene / f"disp0{tag}.pfm",
+                  folder / method / scene / f"time{tag}.txt"]
+    return paths + [folder / RECORD_NAME]
+
+
+def _remove(folder: Path, paths: list[Path]) -> None:
+    """Remove the files ``paths`` under ``folder``, then their folders below it left empty."""
+    for path in paths:
+        if path.is_file() or path.is_symlink():
+            path.unlink()
+    for path in paths:
+        for parent in (path.parent, path.parent.parent):
+            if parent != folder and folder in parent.parents and parent.is_dir() \
+                    and next(parent.iterdir(), None) is None:
+                parent.rmdir()
 
 
 def _note_ignored_plan(args: argparse.Namespace, execution: dict) -> None:
@@ -180,9 +245,20 @@ def run_evaluate(args: argparse.Namespace) -> int:
     """``sswjax evaluate``; returns the exit status (0)."""
     if args.resume and args.output is None:
         raise ValueError("--resume needs -o/--output: the folder of the run to continue")
+    if args.overwrite and args.output is None:
+        raise ValueError("--overwrite needs -o/--output: the folder of the run to replace")
+    if args.resume and args.overwrite:
+        raise ValueError(f"--resume continues the run in {args.output} and --overwrite "
+                         "replaces it: give one")
+    if args.figure and args.output is None:
+        raise ValueError("--figure writes comparison.png into the -o folder: give -o DIR")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if not methods:
         raise ValueError(f"no method given in --methods {args.methods!r}")
+    if args.figure:
+        check_matplotlib("--figure")
+    check_dependencies(methods)
+    earlier = _earlier_outputs(args.output, resume=args.resume, overwrite=args.overwrite)
     params, execution = params_from_args(args)
     _note_ignored_plan(args, execution)
     root = find_data_root(data=args.data)
@@ -208,6 +284,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         settings = {"command": "evaluate", "version": __version__, "params": params.to_dict(),
                     "data": str(Path(root).resolve()), "split": args.split, "ndisp": args.ndisp,
                     "bucket": bool(args.bucket)}
+        _remove(args.output, earlier)
         record = (RunRecord.resume if args.resume else RunRecord.start)(args.output, settings)
     results = {}
     saved, total = 0, len(runners) * len(scenes)

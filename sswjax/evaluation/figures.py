@@ -17,6 +17,18 @@ from sswjax.data.io import disparity_to_rgb
 from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.runner import SceneResult
 
+def check_matplotlib(what: str = "the figure") -> None:
+    """Check, before the work whose figure it is, that matplotlib imports.
+
+    Raises ``ValueError`` (one line: ``WHAT needs matplotlib: pip install 'sswjax[bench]'``)
+    when it does not.
+    """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ValueError(f"{what} needs matplotlib: pip install 'sswjax[bench]'") from None
+
+
 SPARSE_FRACTION = 0.5
 """Ground truths known on fewer pixels than this fraction are *sparse*: :func:`comparison_figure`
 draws them (and the error maps against them) grown by ``sparse_dilate`` pixels."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -31,8 +32,8 @@ from sswjax.config import Params, default_params, kinds
 from sswjax.evaluation.peers import bm_disparity, pandora_disparity, sgbm_disparity
 from sswjax.runtime.buckets import ShapeBuckets
 
-__all__ = ["PEERS", "VARIANTS", "BucketedSSW", "Peer", "Variant", "make_method",
-           "method_names", "method_summaries", "submission_name", "variant_changes"]
+__all__ = ["PEERS", "VARIANTS", "BucketedSSW", "Peer", "Variant", "check_dependencies",
+           "make_method", "method_names", "method_summaries", "submission_name", "variant_changes"]
 
 Method = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 
@@ -62,20 +63,29 @@ VARIANTS: dict[str, Variant] = {
 
 
 class Peer(NamedTuple):
-    """An entry of :data:`PEERS`: another project's matcher and a one-line summary."""
+    """An entry of :data:`PEERS`: another project's matcher, a one-line summary, the modules of
+    its optional packages and what installs them (:func:`check_dependencies`)."""
 
     fn: Callable[..., Any]
     summary: str
+    needs: tuple[str, ...] = ()
+    install: str = ""
 
+
+_OPENCV = (("cv2",), "OpenCV: pip install 'sswjax[bench]'")
 
 PEERS: dict[str, Peer] = {
-    "bm": Peer(bm_disparity, "OpenCV StereoBM, block 9 on the luma, background fill (extra [bench])"),
-    "sgbm": Peer(sgbm_disparity, "OpenCV StereoSGBM 3-way, block 3, background fill (extra [bench])"),
+    "bm": Peer(bm_disparity, "OpenCV StereoBM, block 9 on the luma, background fill (extra [bench])",
+               *_OPENCV),
+    "sgbm": Peer(sgbm_disparity, "OpenCV StereoSGBM 3-way, block 3, background fill (extra [bench])",
+                 *_OPENCV),
     "sgbm-hh": Peer(functools.partial(sgbm_disparity, mode="hh"),
                     "OpenCV StereoSGBM HH (8 paths, full-size buffers), block 3, background fill "
-                    "(extra [bench])"),
+                    "(extra [bench])", *_OPENCV),
     "pandora": Peer(pandora_disparity,
-                    "CNES Pandora census 5x5 + SGM, background fill (extra [pandora])"),
+                    "CNES Pandora census 5x5 + SGM, background fill (extra [pandora])",
+                    ("pandora", "pandora_plugin_libsgm", "xarray"),
+                    "CNES Pandora: pip install 'sswjax[pandora]'"),
 }
 """Method name -> :class:`Peer`."""
 
@@ -135,6 +145,27 @@ class BucketedSSW:
         ``seconds`` is the step's wall time divided by its number of pairs."""
         return iter_match_scenes(pairs, ndisps, params=self.params, buckets=self.buckets,
                                  devices=self.devices)
+
+
+def check_dependencies(names: Sequence[str]) -> None:
+    """Check, before any scene is matched, that the optional packages of the methods ``names``
+    import (:attr:`Peer.needs`); names that are not peers pass (unknown ones are
+    :func:`make_method`'s to refuse).
+
+    Raises ``ValueError`` (one line: ``method NAME needs WHAT: pip install ...``) for the first
+    that does not.
+
+    Examples
+    --------
+    >>> check_dependencies(["ssw", "gf", "nope"])
+    """
+    for name in names:
+        peer = PEERS.get(name)
+        for module in () if peer is None else peer.needs:
+            try:
+                importlib.import_module(module)
+            except ImportError:
+                raise ValueError(f"method {name} needs {peer.install}") from None
 
 
 def make_method(
