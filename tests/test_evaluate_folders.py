@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shlex
 import subprocess
 import sys
 import time
@@ -197,12 +198,13 @@ def test_an_interrupted_overwrite_resumes_without_overwrite(tmp_path, run_cli, m
     code, _, err = run_cli(["evaluate", "--data", root, "--methods", "one", "-o", out,
                             "--overwrite"])
     assert code == 130
-    resume = f"sswjax evaluate --data {root} --methods one -o {out} --resume"
     assert resume_command(["evaluate", "--data", str(root), "--methods", "one", "-o", str(out),
-                           "--overwrite"]) == resume
-    assert err.strip().splitlines()[-1].endswith(f"continue with: {resume}")
+                           "--overwrite"]) == \
+        f"sswjax evaluate --data {root} --methods one -o {out} --resume"
+    resume = shlex.split(err.strip().splitlines()[-1].split("continue with: ", 1)[1])
+    assert resume[0] == "sswjax" and resume[-1] == "--resume" and "--overwrite" not in resume
     interrupted.armed = False
     calls.clear()
-    code, _, err = run_cli(resume.split()[1:])
+    code, _, err = run_cli(resume[1:])  # the command the message suggests
     assert code == 0, err
     assert len(calls) == 2  # the scene kept by the interrupted run is not matched again
