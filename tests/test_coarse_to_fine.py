@@ -48,8 +48,9 @@ def test_a_traced_range_within_a_padded_volume_gives_the_same_map():
 
 def test_the_refit_is_the_stage_on_the_doubled_map():
     """``coarse.refit_radius``: the graph's map is the refit of the doubled map, then its
-    smoothing, as benchmarks/refit.py applies them (jitted) to maps computed without either.
-    16 disparities, as the test above: the whole graph (fast, 48 x 96) compiles once for both."""
+    smoothing, as ``benchmarks/grid.py refit`` applies them (jitted) to maps computed without
+    either. 16 disparities, as the test above: the whole graph (fast, 48 x 96) compiles once for
+    both."""
     left, right = map(jnp.asarray, _shifted_pair(7))
     params, ndisp = sswjax.preset("fast"), 16
     assert params.coarse.refit_radius == 2

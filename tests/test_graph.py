@@ -374,8 +374,8 @@ def test_to_float_image_errors():
 @pytest.mark.parametrize("preset", ["paper", "fast"])
 def test_smoothing_is_the_last_stage_on_the_full_resolution_map(pair, preset):
     """The graph with the smoothing = the stage applied to the graph's map without it (for
-    coarse-to-fine too: once, at full resolution), so benchmarks/smoothing.py may apply it to
-    stored maps; and it changes the map."""
+    coarse-to-fine too: once, at full resolution), so ``benchmarks/grid.py smoothing`` may apply
+    it to stored maps; and it changes the map."""
     left, right = map(jnp.asarray, pair)
     smoothing = sswjax.config.GatedBilateralSmoothing(gate=2.0)
     base = sswjax.preset(preset).replace(smoothing=None)

@@ -1,8 +1,9 @@
 """Named compositions of the stage configurations: the presets, and the default.
 
 ``paper`` is ``Params()``. The others were chosen by the static grids of ``docs/`` ("Beyond
-the paper", "Speed") under the rule of ``benchmarks/held_out.py`` (lowest mean error relative
-to the best, over MiddEval3 trainingQ, KITTI 2012 and Middlebury 2001): P1 and P2 of each
+the paper", "Speed") under the held-out rule of :mod:`sswjax.evaluation.selection` (lowest
+mean error relative to the best, over MiddEval3 trainingQ, KITTI 2012 and Middlebury 2001;
+``benchmarks/grid.py`` scores the rows and applies it): P1 and P2 of each
 preset, the separable median's width and the side-window passes. Every semi-global preset stores
 the aggregated cost in uint8 levels for the int16 paths (a quarter of float32's bytes through
 the memory-bound scans; the same errors within 0.03 on every set) and runs the occlusion tests:
@@ -14,20 +15,20 @@ by the same rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-
 then a column of the window, ``fast`` three such passes (the same errors within 0.05 at bad
 2.0, 2-5x less time in the stage).
 ``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
-(``benchmarks/band.py``, ``docs/band.md``). ``fast`` fits its doubled map again on the
+(``benchmarks/grid.py configs``, ``docs/band.md``). ``fast`` fits its doubled map again on the
 full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
-three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/refit.py``, ``docs/precision.md``),
-and on the halved pair runs ``accurate``'s one side-window pass, the penalties ``accurate``
-had until 2026-12-06 (P1 0.2, P2 1.15, as ``balanced``) and a 7 x 7 fill median, chosen with
-the refit by the same rule (``benchmarks/band.py``, ``docs/speed.md``). ``accurate``'s own
-penalties (P1 0.35, P2 2.4) were gridded again on the finished pipeline; ``fast`` and
-``balanced`` keep theirs by the rule (``docs/beyond-the-paper.md``). ``accurate`` first aligns
-the right image's rows to the left's (the vertical offset measured on its method over the pair
-halved once, every pixel of that first pass counting: chosen by the rule on bad 2.0 and over
-2.0, 1.0 and 0.5, for about a third more time), and so does ``balanced`` (its own first
-pass, chosen by the same rule, for about 45 % more time); ``fast`` stays without it (half
-again its time for little at bad 2.0, measured on a first pass or on its coarse pass,
-``docs/alignment.md``).
+three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/grid.py refit``,
+``docs/precision.md``), and on the halved pair runs ``accurate``'s one side-window pass, the
+penalties ``accurate`` had until 2026-12-06 (P1 0.2, P2 1.15, as ``balanced``) and a 7 x 7 fill
+median, chosen with the refit by the same rule (``benchmarks/grid.py configs``,
+``docs/speed.md``). ``accurate``'s own penalties (P1 0.35, P2 2.4) were gridded again on the
+finished pipeline; ``fast`` and ``balanced`` keep theirs by the rule
+(``docs/beyond-the-paper.md``). ``accurate`` first aligns the right image's rows to the left's
+(the vertical offset measured on its method over the pair halved once, every pixel of that first
+pass counting: chosen by the rule on bad 2.0 and over 2.0, 1.0 and 0.5, for about a third more
+time), and so does ``balanced`` (its own first pass, chosen by the same rule, for about 45 %
+more time); ``fast`` stays without it (half again its time for little at bad 2.0, measured on a
+first pass or on its coarse pass, ``docs/alignment.md``).
 """
 
 from __future__ import annotations
@@ -89,7 +90,7 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 )
 # The smoothing of accurate and fast as a row then a column of its window (3.5x fewer weights
 # per pass): the cheapest point of the grid within 0.05 of the held-out choice at bad 2.0 on
-# every set (benchmarks/smoothing.py, docs/precision.md); balanced takes it by the same rule
+# every set (benchmarks/grid.py smoothing, docs/precision.md); balanced takes it by the same rule
 # (docs/band.md, "The separable smoothing in balanced"); finest keeps the square.
 # accurate first measures the rectification's residual vertical offset on its own method over
 # the pair halved and takes it out of the right image: better at bad 2.0, 1.0 and 0.5 on the

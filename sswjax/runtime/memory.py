@@ -5,7 +5,7 @@ floored by what compiling the graph takes:
 ``peak = MARGIN * max(COMPILE_FLOOR, sum(COEFFICIENTS[t] * terms[t])) + SLACK``. The
 coefficients were fitted (non-negative least squares of relative errors) to the peak resident
 memory (``ru_maxrss``) of fresh processes that read a pair and matched it on the CPU, and the
-floor is the peak of a tiny pair: ``python benchmarks/memory_model.py`` measures and fits, and
+floor is the peak of a tiny pair: ``python benchmarks/memory.py fit`` measures and fits, and
 its table is in ``docs/speed-and-memory.md``. The terms:
 
 ``base``
@@ -84,7 +84,7 @@ COEFFICIENTS: dict[str, float] = {
     "band": 1.491e8,
     "alignment": 2.141e8,
 }
-"""Bytes per unit of each term, fitted by ``benchmarks/memory_model.py`` (2026-12-07, the
+"""Bytes per unit of each term, fitted by ``benchmarks/memory.py fit`` (2026-12-07, the
 presets aligned)."""
 
 COMPILE_FLOOR: dict[str, float] = {"none": 0.447e9, "sgm": 0.569e9}

@@ -17,7 +17,9 @@ the inference graph.
                  final search on everything; what ``sswjax search`` runs
 ===============  ===============================================================================
 
-``tuning/search.py`` is the earlier driver, kept to reproduce the tables recorded with it.
+The earlier driver (``tuning/search.py``) left the tree, superseded by ``sswjax search``; it
+is in git history (``docs/notes/benchmarks-concluded.md``), and the tables recorded with it stay
+in ``tuning/README.md``.
 """
 
 from sswjax.search.checkpoints import load_checkpoint, save_checkpoint

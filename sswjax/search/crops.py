@@ -129,7 +129,8 @@ def dataset_folds(names) -> list[tuple[str, list[str]]]:
     """Leave-one-dataset-out folds: ``[(held_out, [the others]), ...]``, one per data set.
 
     The search of each fold sees crops of the other sets only; its held-out set is then scored
-    with the full pipeline (``tuning/search.py --folds datasets``).
+    with the full pipeline (the earlier driver's ``--folds datasets``; ``sswjax search
+    --held-out datasets`` builds its folds with :func:`sswjax.search.held_out.folds`).
 
     Parameters
     ----------

@@ -15,11 +15,11 @@ __all__ = ["DEFAULT_SURROGATE_OF_SEARCH", "SearchSettings"]
 
 DEFAULT_SURROGATE_OF_SEARCH = "soft_bad2"
 """The objective ``sswjax search`` uses: the surrogate whose crop values ranked the parameter
-points most like whole-image bad 2.0 and 1.0 (``benchmarks/surrogates.py``,
-``docs/parameter-search.md``: Spearman's rho +0.93 with bad 2.0 and +0.89 with bad 1.0
-pooled over the three shared sets, against +0.50 / +0.28 for the smooth L1 of the soft-argmin
-that the search used before), at the start temperature, which the search therefore holds
-(``frozen`` has ``"temperature"``)."""
+points most like whole-image bad 2.0 and 1.0 (``surrogates.py``, a concluded benchmark:
+``docs/notes/benchmarks-concluded.md``; ``docs/parameter-search.md``: Spearman's rho +0.93
+with bad 2.0 and +0.89 with bad 1.0 pooled over the three shared sets, against +0.50 / +0.28
+for the smooth L1 of the soft-argmin that the search used before), at the start temperature,
+which the search therefore holds (``frozen`` has ``"temperature"``)."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -4,9 +4,10 @@ The metric the search should improve (bad 2.0 and 1.0 of the winner-takes-all ma
 gradient. Each surrogate here is a differentiable stand-in computed from the volume the
 winner-takes-all would read and the softmax over disparities it implies,
 ``p = softmax(-cost / temperature)`` (the temperature is a search variable). Which one tracks
-the metric is measured, not assumed: ``benchmarks/surrogates.py`` ranks parameter points by
-each surrogate on crops and by bad 2.0 / 1.0 on whole held-out images, and
-``docs/parameter-search.md`` reports the rank correlations.
+the metric is measured, not assumed: ``surrogates.py`` (a concluded benchmark, in git history:
+``docs/notes/benchmarks-concluded.md``) ranked parameter points by each surrogate on crops and
+by bad 2.0 / 1.0 on whole held-out images, and ``docs/parameter-search.md`` reports the rank
+correlations.
 
 Array conventions: ``cost`` float32 ``(D, H, W)``, lower = better, disparities ``0 .. D - 1``
 (those out of a scene's range already at the out-of-range cost); ``ground_truth`` float32

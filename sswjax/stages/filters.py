@@ -112,7 +112,7 @@ def side_window_means(x: jax.Array, *, radius: int, method: str = "slices") -> j
     method : {"slices", "cumsum", "reduce_window"}
         Sum of ``r + 1`` shifted slices, differences of a running sum (O(1) in ``r``), or XLA's
         windowed reduction. On XLA CPU shifted slices measured fastest for r <= 9
-        (``benchmarks/box_sums.py``).
+        (``box_sums.py``, since out of the tree: ``docs/notes/benchmarks-concluded.md``).
 
     Returns
     -------
