@@ -1,4 +1,6 @@
-"""The report of a search run (tuning/search.py): its curves and its tables.
+"""The report of a run of the earlier search driver (``tuning/search.py``, out of the tree since
+issue 70, superseded by ``sswjax search``: ``docs/notes/benchmarks-concluded.md``): its curves
+and its tables.
 
     python tuning/plot.py tuning/runs/main [tuning/runs/main/curves.png]
 
