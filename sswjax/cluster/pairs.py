@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 from PIL import Image
 
-from sswjax._files import InputError, first_line
+from sswjax._files import InputError, first_line, input_file
 from sswjax.data.io import read_image
 from sswjax.data.orientation import upright_size
 
@@ -45,6 +45,7 @@ def image_size(path: str | Path) -> tuple[int, int, int]:
     >>> image_size("Motorcycle/im0.png")                # doctest: +SKIP
     (497, 741, 3)
     """
+    input_file(path, "image")  # a FIFO is refused, not opened (its open would wait)
     try:
         with Image.open(path) as image:
             height, width = upright_size(image)  # as read_image turns it (EXIF)

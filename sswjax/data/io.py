@@ -28,7 +28,8 @@ import imageio.v3 as iio
 import numpy as np
 
 from sswjax._checks import check_floating, check_rank
-from sswjax._files import InputError, atomic_output, first_line, output_file, reason
+from sswjax._files import (InputError, atomic_output, first_line, input_file, output_file,
+                            reason)
 from sswjax.data.orientation import apply_orientation, read_stored
 
 __all__ = ["FLOAT_MAP_SUFFIXES", "InputError", "atomic_output", "disparity_to_rgb", "first_line",
@@ -128,9 +129,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
 def read_oriented(path: str | os.PathLike) -> tuple[np.ndarray, int]:
     """:func:`read_image`'s upright image and the EXIF orientation it applied (1: none)."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"image not found: {path}")
+    path = input_file(path, "image")  # a FIFO is refused, not opened (its open would wait)
     try:
         with warnings.catch_warnings():
             # imageio's search for a plugin that can read an unknown file imports legacy
@@ -159,8 +158,7 @@ def read_oriented(path: str | os.PathLike) -> tuple[np.ndarray, int]:
 
 
 def _read_bytes(path: Path, what: str) -> bytes:
-    if not path.exists():
-        raise InputError(f"{what} not found: {path}")
+    input_file(path, what)
     try:
         return path.read_bytes()
     except OSError as exc:
