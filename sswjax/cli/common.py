@@ -31,7 +31,7 @@ from sswjax.data.scaled import write_scaled_disparity
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "OUTPUT_FORMATS", "PNG_DISPARITIES",
            "check_output_files", "check_range_formats",
-           "check_outputs", "command_line", "compile_notes", "disparity_writers", "gigabytes", "HelpFormatter",
+           "check_outputs", "command_line", "disparity_writers", "gigabytes", "HelpFormatter",
            "interrupt_flag", "Interrupted", "Parser", "raise_if_interrupted",
            "remembered_interrupts", "resume_command", "uninterrupted",
            "write_disparity_map", "Writer"]
@@ -90,14 +90,6 @@ class Interrupted(KeyboardInterrupt):
 
 _RECEIVED: list[int] = []
 """SIGINTs received under :func:`remembered_interrupts` (the process has one SIGINT handler)."""
-
-
-@contextlib.contextmanager
-def compile_notes():
-    """Kept for the commands that wrap their work in it: the command line now shows what the
-    package logs at ``INFO`` (a graph compiling, then its time) for every command, a terminal
-    or not (:mod:`sswjax.cli.app`), so this adds nothing."""
-    yield
 
 
 @contextlib.contextmanager

@@ -15,7 +15,7 @@ import skimage.data
 
 from sswjax._files import atomic_outputs, reason
 from sswjax.api.match import match
-from sswjax.cli.common import check_outputs, compile_notes, disparity_writers
+from sswjax.cli.common import check_outputs, disparity_writers
 from sswjax.cli.options import add_parameter_options, params_from_args, plan_from_args
 from sswjax.evaluation.metrics import evaluate_disparity
 
@@ -50,7 +50,7 @@ def run_demo(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise ValueError(f"cannot create the output folder {out}: {reason(exc)}") from exc
     try:
-        with compile_notes(), atomic_outputs([pfm, png]) as files:  # destinations writable
+        with atomic_outputs([pfm, png]) as files:  # destinations writable
             left, right, ground_truth = skimage.data.stereo_motorcycle()
             start = time.perf_counter()
             disparity = match(left, right, DEMO_NDISP, params=params, plan=plan)

@@ -31,7 +31,7 @@ from sswjax._files import atomic_outputs
 from sswjax.api.auto_range import estimate_range
 from sswjax.api.match import match, match_with_confidence
 from sswjax.api.rectify import rectification, rectified_calibration
-from sswjax.cli.common import (OUTPUT_FORMATS, check_outputs, check_range_formats, compile_notes,
+from sswjax.cli.common import (OUTPUT_FORMATS, check_outputs, check_range_formats,
                                disparity_writers, gigabytes)
 from sswjax.cli.confidence import (add_confidence_options, confidence_writers, invalid_as_inf,
                                    wants_confidence)
@@ -134,14 +134,15 @@ def _check_range_outputs(outputs: dict, calib, min_disp: int, ndisp: int) -> Non
 
 def guard_pair(args: argparse.Namespace, params: Params, plan: ExecutionPlan) -> ExecutionPlan:
     """The checks of ``sswjax match LEFT RIGHT`` made before reading the images: ``--resume``
-    is for folders (``--bucket`` too: a note says it is ignored); the pair (sizes from the
+    is for folders (``--bucket`` and ``--strict`` too: a note says each is ignored); the pair (sizes from the
     headers) must fit in memory, in strips if it must.
     Returns the plan to match with."""
     if args.resume:
         raise ValueError("--resume is for folders (sswjax match LEFT_DIR RIGHT_DIR -o OUT_DIR)")
-    if args.bucket:  # harmless for one pair (a script may pass it for both): said, not refused
-        print("sswjax: note: --bucket applies to folder runs; ignored for one pair",
-              file=sys.stderr)
+    for flag, given in (("--bucket", args.bucket), ("--strict", args.strict)):
+        if given:  # harmless for one pair (a script may pass it for both): said, not refused
+            print(f"sswjax: note: {flag} applies to folder runs; ignored for one pair",
+                  file=sys.stderr)
     if not isinstance(args.ndisp, int) or args.rectify is not None:
         return plan  # the range or the size comes from the images: guarded once they are read
     left, right = image_size(args.left), image_size(args.right)
@@ -214,7 +215,7 @@ def run_match(args: argparse.Namespace) -> int:
     elif args.alpha is not None or args.cameras is not None:
         raise ValueError(f"{'--alpha' if args.alpha is not None else '--cameras'} goes with "
                          "--rectify STEREO_CALIB")
-    with compile_notes(), atomic_outputs(outputs.values()) as files:  # destinations writable
+    with atomic_outputs(outputs.values()) as files:  # destinations writable
         raw_left, raw_right, notes = upright_pair(read_oriented(args.left),
                                                   read_oriented(args.right))
         for note in notes:  # a photo stored turned, turned upright (its EXIF tag)
