@@ -174,8 +174,9 @@ def test_evaluate_interrupted_in_process_messages(tmp_path, run_cli, middeval3, 
     fake_method.interrupt_at = 2
     code, stdout, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "-o", out])
     assert code == 130 and stdout == ""
+    # the command the user typed, --resume added: run_cli types --quiet before the command
     expected = (f"sswjax: interrupted; 1 of 3 scene results are saved in {out}; continue with: "
-                f"sswjax evaluate --data {root} --methods fake -o {out} --resume")
+                f"sswjax --quiet evaluate --data {root} --methods fake -o {out} --resume")
     assert err.strip().splitlines()[-1] == expected
     assert sorted(p.name for p in (out / "fake").iterdir()) == ["Adirondack"]
     # without -o nothing can be kept, and the message says so
