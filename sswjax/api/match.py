@@ -153,7 +153,7 @@ def match_with_confidence(
                           min_disp=min_disp, params=params, buckets=buckets, plan=plan,
                           check_memory=check_memory)
     validity = validity_mask(outputs.disparity, outputs.confidence, outputs.lr_failed,
-                             threshold=float(low_confidence))
+                             threshold=float(low_confidence), ambiguous=outputs.ambiguous)
     return Matched(outputs.disparity, outputs.confidence, np.asarray(validity))
 
 

@@ -15,7 +15,8 @@ from sswjax.config import Params
 from sswjax.graph.refine import refine
 from sswjax.graph.padding import edge_filler, outside_as_border, padding_as_edge
 from sswjax.graph.scopes import Stage, scope
-from sswjax.graph.volume import OUT_OF_RANGE_COST, Scene, Selected, cost_bound, prepare_scene
+from sswjax.graph.volume import (OUT_OF_RANGE_COST, Scene, Selected, cost_bound, prepare_scene,
+                                 stored_scale)
 from sswjax.stages.bands import band_right_view, band_starts, band_winners
 from sswjax.stages.buffers import written_once
 from sswjax.stages.confidence import ConfidenceCues
@@ -73,7 +74,12 @@ def select_band(scene: Scene, params: Params, estimate: jax.Array, *, ndisp: int
             optimised = PathSums(optimised, None)
     with scope(Stage.SELECTION):
         winners = band_winners(optimised.sums, starts, scale=optimised.scale)
-    return Selected(winners, None, aggregated_right)
+    margin = None
+    if optimizer is not None:
+        # The confidence's margin from the band's aggregated cost, not the paths' sums.
+        aggregated = band_winners(stored, starts, scale=stored_scale(params))
+        margin = (aggregated.second - aggregated.cost) / bound
+    return Selected(winners, None, aggregated_right, margin=margin)
 
 
 def match_band(left: jax.Array, right: jax.Array, params: Params, estimate: jax.Array, *,

@@ -25,7 +25,7 @@ from sswjax.graph.padding import padding_as_edge
 from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import (Selected, aggregate_slices, optimised_volume, prepare_scene,
                                  select_optimised, streamed_winners)
-from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, confidence
+from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, ambiguous, confidence
 from sswjax.stages.paths import Seeds
 
 __all__ = ["DEFAULT_CHUNK", "SSWOutputs", "aggregated_cost", "carries_paths", "check_carried",
@@ -187,12 +187,14 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
 
 class SSWOutputs(NamedTuple):
     """What :func:`ssw_outputs` returns, all ``(H, W)``: the dense disparity (float32, as
-    :func:`ssw_disparity`), its confidence (float32 in [0, 1], higher = more reliable) and the
-    pixels the checks rejected and the fill filled (bool)."""
+    :func:`ssw_disparity`), its confidence (float32 in [0, 1], higher = more reliable), the
+    pixels the checks rejected and the fill filled (bool) and those whose cost has no distinct
+    minimum (bool, :func:`sswjax.stages.confidence.ambiguous`)."""
 
     disparity: jax.Array
     confidence: jax.Array
     lr_failed: jax.Array
+    ambiguous: jax.Array
 
 
 # A stored graph's results are a pytree jax.export writes by this name (sswjax.runtime.stored).
@@ -219,8 +221,8 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     Returns
     -------
     SSWOutputs
-        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed; with
-        ``seeds``, the pair ``(outputs, carried)``.
+        float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed, bool
+        (H, W) ambiguous; with ``seeds``, the pair ``(outputs, carried)``.
 
     Examples
     --------
@@ -232,7 +234,8 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     """
     disparity, cues, carried = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
                                           valid_shape=valid_shape, seeds=seeds)
-    outputs = SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed)
+    outputs = SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed,
+                         ambiguous(cues))
     return outputs if seeds is None else (outputs, carried)
 
 

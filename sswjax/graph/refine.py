@@ -12,7 +12,7 @@ import jax.numpy as jnp
 from sswjax.config import Params
 from sswjax.graph.padding import outside_as_border, padding_as_edge
 from sswjax.graph.scopes import Stage, scope
-from sswjax.graph.volume import Scene, Selected
+from sswjax.graph.volume import Scene, Selected, cost_bound
 from sswjax.stages.baselines import box_filter
 from sswjax.stages.confidence import ConfidenceCues
 from sswjax.stages.medians import side_window_median_filter
@@ -92,5 +92,8 @@ def refine(selected: Selected, scene: Scene, params: Params, limit
             disparity = side_window_median_filter(edge(disparity), radius=median.radius,
                                                   iterations=median.iterations)
         disparity = jnp.clip(disparity, 0, limit - 1)
-    cues = ConfidenceCues(winners.cost, winners.second, distance, initial, failed)
+    margin = selected.margin
+    if margin is None:  # the winners are the aggregated cost's
+        margin = (winners.second - winners.cost) / cost_bound(params)
+    cues = ConfidenceCues(winners.cost, winners.second, distance, initial, failed, margin)
     return disparity, cues

@@ -29,8 +29,9 @@ from sswjax.stages.selection import Winners, fold_right_view, fold_winners, no_w
 from sswjax.stages.quantisation import PathSums, quantise_cost, sum_planes
 
 __all__ = ["OUT_OF_RANGE_COST", "Scene", "Selected", "aggregate_slices", "aggregated_volume",
-           "cost_bound", "cost_features", "fold_volume", "optimised_volume", "prepare_scene",
-           "right_view", "select_optimised", "streamed_winners", "superpixels"]
+           "cost_bound", "cost_features", "cost_margin", "fold_volume", "optimised_volume",
+           "prepare_scene", "right_view", "select_optimised", "stored_scale", "streamed_winners",
+           "superpixels"]
 
 OUT_OF_RANGE_COST = 1e4
 """Cost of the disparities beyond a traced range, as the optimiser sees them: high but finite
@@ -75,12 +76,17 @@ class Selected(NamedTuple):
         The right view's winners of the aggregated cost before the optimiser.
     carried : Seeds or None
         The optimiser's path states for the neighbouring windows, when it was given seeds.
+    margin : float32 (H, W) or None
+        The ``margin`` confidence cue (:mod:`sswjax.stages.confidence`) when the winners come
+        from another volume than the aggregated cost (:func:`cost_margin`); None: the winners'
+        own ``(second - cost) / cost_bound``.
     """
 
     winners: Winners
     parabola: tuple | None = None
     aggregated_right: jax.Array | None = None
     carried: object = None
+    margin: jax.Array | None = None
 
 
 def superpixels(left: jax.Array, params: Params) -> tuple[jax.Array, int]:
@@ -206,7 +212,8 @@ def select_optimised(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
                      chunk: int, seeds=None) -> Selected:
     """The winners of the optimised volume and, as the checks ask, the right view of the
     aggregated one; the parabola's costs from the aggregated volume when the optimiser asks;
-    the paths' states for the neighbouring windows with ``seeds``."""
+    the paths' states for the neighbouring windows with ``seeds``; the confidence's margin
+    from the aggregated volume (:func:`cost_margin`)."""
     limit = ndisp if valid_ndisp is None else valid_ndisp
     cost, optimised = optimised_volume(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
                                        chunk=chunk, seeds=seeds)
@@ -219,7 +226,28 @@ def select_optimised(scene: Scene, params: Params, *, ndisp: int, valid_ndisp=No
     parabola = (costs_around(cost, winners.disparity)
                 if params.optimizer.subpixel_on_input else None)
     carried = optimised.carried if isinstance(optimised, PathSums) else None
-    return Selected(winners, parabola, aggregated_right, carried)
+    # The confidence's margin, from the aggregated cost: the paths' penalties alone make the
+    # sums' minimum stand out. Only graphs that return the confidence keep this fold.
+    margin = cost_margin(cost, params, limit=limit, chunk=chunk)
+    return Selected(winners, parabola, aggregated_right, carried, margin)
+
+
+def stored_scale(params: Params):
+    """Levels per cost unit of the aggregated volume as the optimiser of ``params`` stores it
+    (:meth:`~sswjax.config.Optimizer.storage`): a float32 scalar, or None for float32."""
+    quant = params.optimizer.storage(cost_bound(params))
+    if quant is None:
+        return None
+    return quant.scale if quant.levels is None else quant.levels / quant.cap
+
+
+def cost_margin(cost: jax.Array, params: Params, *, limit, chunk: int) -> jax.Array:
+    """The ``margin`` confidence cue of the stored aggregated volume ``cost`` (D, H, W) of
+    :func:`optimised_volume`: ``(c2 - c1) / cost_bound`` of its own winner-takes-all, in its
+    stored levels (:mod:`sswjax.stages.confidence`). float32 (H, W), ``+inf`` without a
+    runner-up."""
+    winners = fold_volume(PathSums(cost, stored_scale(params)), limit, chunk)
+    return (winners.second - winners.cost) / cost_bound(params)
 
 
 def _fold(state: Winners, slices, first, limit) -> Winners:

@@ -15,13 +15,27 @@ The cues (:class:`ConfidenceCues`) come out of the running winner-takes-all fold
 - ``initial``: the winner with its sub-pixel parabola, before filling and the median;
 - ``lr_failed``: the pixels the left-right check rejected (then filled), with those the
   uniqueness and aggregated-view tests add (``checks.uniqueness_gap``,
-  ``checks.aggregated_gap``); all False when the check is off.
+  ``checks.aggregated_gap``); all False when the check is off;
+- ``margin``: how far the matching cost's minimum stands out, before any optimiser:
+  ``(c2' - c1') / B`` for the winner ``c1'`` and runner-up ``c2'`` (as above) of the aggregated
+  cost as the optimiser reads it (its uint8 or int16 levels where it stores them), ``B`` the
+  largest aggregated cost of a matching pixel (:func:`sswjax.graph.volume.cost_bound`);
+  ``+inf`` without a runner-up. Without an optimiser it is ``(second - cost) / B``; with one,
+  the semi-global sums carry the path penalties, which alone make a minimum stand out where
+  the matching cost has none (a blank pair: the border's cost carried along every path), so
+  it comes from a fold of its own over the stored volume (in the graphs that return the
+  confidence only).
+
+A pixel whose ``margin`` is at most :data:`AMBIGUITY_TOLERANCE` has no distinct cost minimum
+(:func:`ambiguous`: a blank, saturated or flat-gradient region, a pattern repeated within the
+range): every measure gives it confidence 0, and :func:`validity_mask` sets bit 4.
 
 The measures (:data:`MEASURES`) turn them into a confidence in [0, 1]:
 
 ==============  ===================================================================================
 ``ratio``       ``1 - c1 / c2``: the peak-ratio (PKRN, Hu & Mordohai 2012) mapped to [0, 1]; 0 for
-                two equal valleys, near 1 for a single sharp one
+                two equal valleys, near 1 for a single sharp one (and 1 for any ``c2 > 0`` when
+                ``c1 = 0``: a blank pair's winner; hence the ``margin`` above)
 ``lr``          ``1 / (1 + lr_distance)``: 1 when both views agree, 0 without a match
 ``agreement``   ``1 / (1 + |d - initial|)``: how much filling and the median moved the winner
 ``combined``    the product of the three (the default, the best of the sparsification curves
@@ -37,7 +51,9 @@ Validity bits (:func:`validity_mask`; 0 = valid):
 - bit 2 (``LOW_CONFIDENCE`` = 4): confidence below the threshold given;
 - bit 3 (``OUTSIDE_VIEW`` = 8): outside the rectified view, set by :mod:`sswjax.api.rectify`
   (not by :func:`validity_mask`): rectification filled the pixel, or its match, from outside
-  the raw image.
+  the raw image;
+- bit 4 (``AMBIGUOUS`` = 16): no distinct cost minimum (:func:`ambiguous`; its confidence is 0,
+  so bit 2 comes with it at any threshold above 0).
 """
 
 from __future__ import annotations
@@ -57,6 +73,13 @@ LOW_CONFIDENCE = 4
 """Validity bit 2: confidence below the threshold."""
 OUTSIDE_VIEW = 8
 """Validity bit 3: outside the rectified view (the pixel or its match lies outside the raw view)."""
+AMBIGUOUS = 16
+"""Validity bit 4: no distinct cost minimum (:func:`ambiguous`)."""
+
+AMBIGUITY_TOLERANCE = 0.005
+"""The largest ``margin`` cue (runner-up minus winner of the matching cost, as a fraction of its
+bound) at which the minimum does not stand out: below one uint8 level of the stored cost
+(``2 / 255`` of the bound), and a small share of textured pixels (``docs/confidence.md``)."""
 
 DEFAULT_MEASURE = "combined"
 DEFAULT_THRESHOLD = 0.05
@@ -64,13 +87,40 @@ DEFAULT_THRESHOLD = 0.05
 
 
 class ConfidenceCues(NamedTuple):
-    """What the confidence measures read, all ``(H, W)``: see the module docstring."""
+    """What the confidence measures read, all ``(H, W)``: see the module docstring.
+
+    ``margin`` may be None (cues built by hand): then no pixel is judged ambiguous."""
 
     cost: jax.Array
     second: jax.Array
     lr_distance: jax.Array
     initial: jax.Array
     lr_failed: jax.Array
+    margin: jax.Array | None = None
+
+
+def ambiguous(cues: ConfidenceCues) -> jax.Array:
+    """Where the matching cost has no distinct minimum: ``margin <= AMBIGUITY_TOLERANCE``.
+
+    Parameters
+    ----------
+    cues : ConfidenceCues
+
+    Returns
+    -------
+    bool (H, W); all False when ``cues.margin`` is None.
+
+    Examples
+    --------
+    >>> import jax.numpy as jnp
+    >>> one = jnp.ones((1, 3))
+    >>> margin = jnp.array([[0.0, 0.004, 0.2]])
+    >>> ambiguous(ConfidenceCues(0 * one, margin, one, one, one > 2, margin)).tolist()
+    [[True, True, False]]
+    """
+    if cues.margin is None:
+        return jnp.zeros(jnp.shape(cues.cost), bool)
+    return cues.margin <= AMBIGUITY_TOLERANCE
 
 
 def ratio_confidence(cost: jax.Array, second: jax.Array) -> jax.Array:
@@ -129,7 +179,7 @@ def confidence(cues: ConfidenceCues, disparity: jax.Array, *, measure: str = DEF
 
     Returns
     -------
-    float32 (H, W) in [0, 1], higher = more reliable.
+    float32 (H, W) in [0, 1], higher = more reliable; 0 wherever :func:`ambiguous`.
 
     Examples
     --------
@@ -138,18 +188,21 @@ def confidence(cues: ConfidenceCues, disparity: jax.Array, *, measure: str = DEF
     >>> cues = ConfidenceCues(one, 4 * one, jnp.array([[0.0, 1.0]]), 2 * one, one > 2)
     >>> confidence(cues, 2 * one).tolist()
     [[0.75, 0.375]]
+    >>> confidence(cues._replace(margin=jnp.array([[0.0, 0.5]])), 2 * one).tolist()
+    [[0.0, 0.375]]
     """
     if measure not in MEASURES:
         raise ValueError(f"unknown confidence measure {measure!r}; choose from {', '.join(MEASURES)}")
     check_rank("disparity", disparity, 2)
     check_floating("disparity", disparity)
     for name, cue in zip(cues._fields, cues):
-        check_same_shape("disparity", disparity, name, cue)
-    value = MEASURES[measure](cues, disparity)
+        if cue is not None:
+            check_same_shape("disparity", disparity, name, cue)
+    value = jnp.where(ambiguous(cues), 0.0, MEASURES[measure](cues, disparity))
     return jnp.clip(value, 0.0, 1.0).astype(jnp.float32)
 
 
-def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
+def validity_mask(disparity, confidence, lr_failed, *, threshold, ambiguous=None) -> jax.Array:
     """The validity bits of each pixel (0 = valid; module docstring for the bits).
 
     The left band is judged from ``disparity`` as given, in the image's own columns: pass the
@@ -162,6 +215,8 @@ def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
     lr_failed : bool (H, W)
     threshold : float in [0, 1]
         Confidence strictly below it sets bit 2 (0 never sets it).
+    ambiguous : bool (H, W), optional
+        Where the cost has no distinct minimum (:func:`ambiguous`): sets bit 4.
 
     Returns
     -------
@@ -175,10 +230,14 @@ def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
     >>> f = jnp.array([[False, False, False, True]])
     >>> validity_mask(d, c, f, threshold=0.1).tolist()
     [[2, 0, 4, 1]]
+    >>> validity_mask(d, 0 * c, f, threshold=0.1, ambiguous=c < 0.5).tolist()
+    [[6, 4, 20, 5]]
     """
     check_rank("disparity", disparity, 2)
     check_same_shape("disparity", disparity, "confidence", confidence)
     check_same_shape("disparity", disparity, "lr_failed", lr_failed)
+    if ambiguous is not None:
+        check_same_shape("disparity", disparity, "ambiguous", ambiguous)
     if not 0.0 <= float(threshold) <= 1.0:
         raise ValueError(f"low-confidence threshold must be in [0, 1], got {threshold}")
     columns = jnp.arange(disparity.shape[1], dtype=jnp.float32)[None, :]
@@ -186,4 +245,6 @@ def validity_mask(disparity, confidence, lr_failed, *, threshold) -> jax.Array:
     band = (columns - disparity < 0) | (columns - disparity > disparity.shape[1] - 1)
     bits = (jnp.where(lr_failed, LR_FAILED, 0) | jnp.where(band, LEFT_BAND, 0)
             | jnp.where(confidence < threshold, LOW_CONFIDENCE, 0))
+    if ambiguous is not None:
+        bits |= jnp.where(ambiguous, AMBIGUOUS, 0)
     return bits.astype(jnp.uint8)

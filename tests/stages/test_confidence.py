@@ -6,11 +6,15 @@ import pytest
 
 from sswjax import Params, graph
 from sswjax.stages.confidence import (
+    AMBIGUITY_TOLERANCE,
+    AMBIGUOUS,
     LEFT_BAND,
     LOW_CONFIDENCE,
     LR_FAILED,
     MEASURES,
+    OUTSIDE_VIEW,
     ConfidenceCues,
+    ambiguous,
     confidence,
     ratio_confidence,
     validity_mask,
@@ -106,6 +110,30 @@ def test_validity_bits_on_a_constructed_case():
         validity_mask(jnp.asarray(disparity), jnp.asarray(conf), jnp.asarray(failed), threshold=2)
 
 
+def test_no_distinct_minimum_is_confidence_zero_and_bit_4_under_every_measure():
+    # A blank pair's cues: the winner costs 0, a runner-up a hair above it (the ratio alone
+    # says 1), both views agree, nothing moved; the margin says there is no minimum.
+    zero, one = jnp.zeros((1, 4)), jnp.ones((1, 4))
+    second = jnp.array([[1e-3, 0.5, 0.5, jnp.inf]])
+    margin = jnp.array([[0.0, AMBIGUITY_TOLERANCE, 2 * AMBIGUITY_TOLERANCE, jnp.inf]])
+    cues = ConfidenceCues(zero, second, zero, zero, one > 2, margin)
+    assert np.asarray(ambiguous(cues)).tolist() == [[True, True, False, False]]
+    for name in MEASURES:
+        assert np.asarray(confidence(cues, zero, measure=name)).tolist() == [[0, 0, 1, 1]], name
+    # Without the margin (cues made by hand) nothing is judged ambiguous.
+    assert not np.asarray(ambiguous(cues._replace(margin=None))).any()
+    assert float(confidence(cues._replace(margin=None), zero).min()) == 1.0
+    bits = validity_mask(zero + 2, confidence(cues, zero), one > 2, threshold=0.05,
+                         ambiguous=ambiguous(cues))
+    # (d = 2: x = 0 and 1 in the left band.)
+    assert np.asarray(bits).tolist() == [[AMBIGUOUS | LOW_CONFIDENCE | LEFT_BAND] * 2 + [0, 0]]
+    # A bit of its own, beside the others.
+    assert AMBIGUOUS == 16 and len({LR_FAILED, LEFT_BAND, LOW_CONFIDENCE, OUTSIDE_VIEW,
+                                    AMBIGUOUS}) == 5
+    with pytest.raises(ValueError, match="ambiguous"):
+        validity_mask(zero, zero, one > 2, threshold=0.05, ambiguous=jnp.zeros((2, 4), bool))
+
+
 def _pair(seed=3, shift=4, size=(40, 56)):
     rng = np.random.default_rng(seed)
     right = rng.random((*size, 3), dtype=np.float32)
@@ -124,11 +152,14 @@ def test_outputs_same_for_every_chunk_and_equal_to_ssw_disparity(optimizer):
         np.testing.assert_allclose(np.asarray(out.confidence), np.asarray(outputs[0].confidence),
                                    rtol=1e-5, atol=1e-6)
         np.testing.assert_array_equal(np.asarray(out.lr_failed), np.asarray(outputs[0].lr_failed))
+        np.testing.assert_array_equal(np.asarray(out.ambiguous), np.asarray(outputs[0].ambiguous))
     conf = np.asarray(outputs[0].confidence)
     assert conf.dtype == np.float32 and conf.min() >= 0 and conf.max() <= 1
     # The left band (x < 4) has no true match: a winner there is a guess, low in confidence.
     assert conf[:, :3].max() < 0.1
     assert np.median(conf[:, 12:]) > 0.2
+    # Texture has a distinct minimum nearly everywhere.
+    assert np.asarray(outputs[0].ambiguous)[:, 12:].mean() < 0.02
 
 
 def test_confidence_higher_on_texture_than_on_a_flat_pair():
