@@ -99,7 +99,8 @@ def add_geometry_options(parser: argparse.ArgumentParser) -> None:
     rig = parser.add_mutually_exclusive_group()
     rig.add_argument("--calib", type=Path, metavar="calib.txt",
                      help="Middlebury calibration: cam0 (focal length, principal point), "
-                          "baseline, doffs")
+                          "baseline, doffs (left out: cam1's cx minus cam0's; one that "
+                          "disagrees with them, or a key given twice, is refused)")
     rig.add_argument("--focal", type=float, metavar="F", help="focal length in pixels")
     rig.add_argument("--rectify", type=Path, nargs="+", metavar="STEREO_CALIB",
                      help="raw images of a calibrated rig: rectify them first with this "

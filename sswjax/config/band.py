@@ -47,7 +47,7 @@ class DisparityBand(Part):
         """The optimiser must run over per-pixel bands; a segment range needs superpixels."""
         if self.segment_range and params.segments is None:
             raise ConfigError("band.segment_range", "band.segment_range takes each band's "
-                              "range over its superpixel: it needs segments")
+                              "range over its superpixel: it needs segments (--set segments=slic)")
         if params.optimizer is not None and not params.optimizer.searches_bands:
             raise ConfigError("band", f"band: the optimizer {params.optimizer.kind!r} does not "
                               "run over per-pixel disparity bands (use 'sgm' or none)")
