@@ -81,10 +81,10 @@ def _temporaries(folder: Path) -> list[Path]:
 def no_matching(monkeypatch):
     """Reading the images (the first step of the run) fails the test: what is refused must be
     refused before it."""
-    def read_image(path):
+    def read_oriented(path):
         raise AssertionError(f"the run started: read {path}")
 
-    monkeypatch.setattr(cli_match, "read_image", read_image)
+    monkeypatch.setattr(cli_match, "read_oriented", read_oriented)
 
 
 def _unwritable_folder(tmp_path: Path) -> Path:
