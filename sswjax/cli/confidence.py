@@ -3,7 +3,8 @@
 ``--confidence CONF.pfm`` writes the confidence (float32 in [0, 1], higher = more reliable),
 ``--validity VALID.png`` the validity bits as an 8-bit gray PNG (0 = valid; bit 0 = failed the
 left-right check and filled, bit 1 = left band ``x - d < 0``, bit 2 = confidence below
-``--low-confidence``; :mod:`sswjax.stages.confidence`), and ``--invalid-as-inf`` writes the
+``--low-confidence``, bit 3 = outside the rectified view (``--rectify``), bit 4 = no cost minimum
+stands out (a textureless or saturated region); :mod:`sswjax.stages.confidence`), and ``--invalid-as-inf`` writes the
 ``-o`` map (and ``--png``) with ``inf`` wherever a validity bit is set, the MiddEval3
 convention for pixels without an estimate. ``--confidence`` is written by its extension
 (``.pfm``, ``.npy``, ``.tif``, ``.tiff``). Every output is checked before the run and written
@@ -45,7 +46,8 @@ def add_confidence_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--validity", type=Path, metavar="VALID.png",
                         help="also write the validity bits (8-bit PNG, 0 = valid; 1: failed the "
                              "left-right check and filled, 2: left band x - d < 0, 4: low "
-                             "confidence)")
+                             "confidence, 8: outside the rectified view, 16: ambiguous, no "
+                             "cost minimum stands out)")
     parser.add_argument("--invalid-as-inf", action="store_true",
                         help="write inf into -o (and --png) wherever a validity bit is set "
                              "(the MiddEval3 convention) instead of the filled values")
