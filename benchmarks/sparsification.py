@@ -35,7 +35,8 @@ from sswjax.graph import DEFAULT_CHUNK, ssw_cues
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.compilation import enable_compilation_cache
 from sswjax.data.layouts import load_scenes
-from sswjax.stages.confidence import MEASURES, ConfidenceCues, confidence, validity_mask
+from sswjax.stages.confidence import (MEASURES, ConfidenceCues, ambiguous, confidence,
+                                      validity_mask)
 
 sys.path.insert(0, str(Path(__file__).parent))
 from _report import write_report  # noqa: E402
@@ -56,13 +57,15 @@ class _Maps(NamedTuple):
     lr_distance: jax.Array
     initial: jax.Array
     lr_failed: jax.Array
+    margin: jax.Array  # how far the matching cost's minimum stands out (bit 4 where it does not)
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
-def _graph(left, right, params, *, ndisp, valid_ndisp=None, chunk=DEFAULT_CHUNK):
+def _graph(left, right, params, *, ndisp, valid_ndisp=None, chunk=DEFAULT_CHUNK,
+           valid_shape=None):
     """``ssw_cues`` flattened into one NamedTuple of maps, so strips and buckets crop each."""
     disparity, cues = ssw_cues(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                               chunk=chunk)
+                               chunk=chunk, valid_shape=valid_shape)
     return _Maps(disparity, *cues)
 
 
@@ -108,7 +111,8 @@ def scene_curves(maps: _Maps, ground_truth: np.ndarray, rng) -> tuple[dict, dict
     validity = {}
     for threshold in THRESHOLDS:
         bits = np.asarray(validity_mask(jnp.asarray(disparity), jnp.asarray(values["combined"]),
-                                        jnp.asarray(maps.lr_failed), threshold=threshold))[known]
+                                        jnp.asarray(maps.lr_failed), threshold=threshold,
+                                        ambiguous=ambiguous(cues)))[known]
         kept = bits == 0
         validity[threshold] = (100 * np.mean(~kept),
                                100 * np.mean(error[kept] > BAD) if kept.any() else np.nan)

@@ -119,7 +119,8 @@ def test_no_distinct_minimum_is_confidence_zero_and_bit_4_under_every_measure():
     cues = ConfidenceCues(zero, second, zero, zero, one > 2, margin)
     assert np.asarray(ambiguous(cues)).tolist() == [[True, True, False, False]]
     for name in MEASURES:
-        assert np.asarray(confidence(cues, zero, measure=name)).tolist() == [[0, 0, 1, 1]], name
+        # scaled, not zeroed: below every useful threshold, yet still ordered among themselves
+        assert np.asarray(confidence(cues, zero, measure=name)).tolist() == [[1 / 256, 1 / 256, 1, 1]], name
     # Without the margin (cues made by hand) nothing is judged ambiguous.
     assert not np.asarray(ambiguous(cues._replace(margin=None))).any()
     assert float(confidence(cues._replace(margin=None), zero).min()) == 1.0
