@@ -87,7 +87,8 @@ AMBIGUOUS_SCALE = 1 / 256
 useful threshold, while such pixels keep their measure's order among themselves. On six trainingQ
 scenes (``accurate``) the flagged pixels erred 2-3x as often as the average, yet the semi-global
 paths got most of them right, and the measure still ranks them: setting them to 0 instead raised
-the mean sparsification area from 3.73 to 4.00, scaling them to 3.87 (``docs/confidence.md``)."""
+the mean sparsification area from 3.73 to 4.00, scaling them by 1/256 to 3.89
+(``docs/confidence.md``)."""
 
 DEFAULT_MEASURE = "combined"
 DEFAULT_THRESHOLD = 0.05
