@@ -256,7 +256,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if not methods:
         raise ValueError(f"no method given in --methods {args.methods!r}")
     if args.figure:
-        check_matplotlib("--figure")
+        check_matplotlib(what="--figure")
     check_dependencies(methods)
     earlier = _earlier_outputs(args.output, resume=args.resume, overwrite=args.overwrite)
     params, execution = params_from_args(args)

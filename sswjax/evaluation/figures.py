@@ -17,7 +17,7 @@ from sswjax.data.io import disparity_to_rgb
 from sswjax.data.layouts import StereoScene
 from sswjax.evaluation.runner import SceneResult
 
-def check_matplotlib(what: str = "the figure") -> None:
+def check_matplotlib(*, what: str = "the figure") -> None:
     """Check, before the work whose figure it is, that matplotlib imports.
 
     Raises ``ValueError`` (one line: ``WHAT needs matplotlib: pip install 'sswjax[bench]'``)
