@@ -23,8 +23,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from sswjax._files import InputError, input_file, reason
+from sswjax._files import InputError
 from sswjax.api.geometry import StereoCalibration
+from sswjax.data.calibration.common import read_head
 from sswjax.data.calibration.kitti import COLOUR, GRAY, read_kitti_calibration
 from sswjax.data.calibration.middlebury import (read_calib, read_calibration,
                                                 read_middlebury_calibration)
@@ -50,12 +51,7 @@ def calibration_format(path: str | os.PathLike) -> str:
     >>> calibration_format("Motorcycle/calib.txt")  # doctest: +SKIP
     'middlebury'
     """
-    path = input_file(path, "calibration file")
-    try:
-        with open(path, "rb") as handle:
-            head = handle.read(4096)
-    except OSError as exc:
-        raise InputError(f"cannot read calibration file {path}: {reason(exc)}") from exc
+    path, head = read_head(path, 4096)
     if head.startswith(b"PK"):
         return "npz"
     text = head.decode("utf-8", "replace").lstrip("\ufeff \t\r\n")

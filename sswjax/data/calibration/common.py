@@ -16,7 +16,18 @@ import numpy as np
 from sswjax._files import InputError, input_file, reason
 from sswjax.api.geometry import StereoCalibration, check_stereo_calibration, checked_array
 
-__all__ = ["checked", "matrix", "read_text", "size_of"]
+__all__ = ["checked", "matrix", "read_head", "read_text", "size_of"]
+
+
+def read_head(path: str | os.PathLike, size: int) -> tuple[Path, bytes]:
+    """The checked path of a calibration file and its first ``size`` bytes (to tell its format);
+    ``InputError`` as :func:`read_text`."""
+    path = input_file(path, "calibration file")
+    try:
+        with open(path, "rb") as handle:
+            return path, handle.read(size)
+    except OSError as exc:
+        raise InputError(f"cannot read calibration file {path}: {reason(exc)}") from exc
 
 
 def read_text(path: str | os.PathLike) -> str:

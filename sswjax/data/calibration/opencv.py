@@ -18,7 +18,7 @@ import numpy as np
 
 from sswjax._files import InputError, input_file, reason
 from sswjax.api.geometry import Rectification, StereoCalibration
-from sswjax.data.calibration.common import checked, matrix, size_of
+from sswjax.data.calibration.common import checked, matrix, read_head, size_of
 from sswjax.data.calibration.filestorage import read_filestorage
 
 __all__ = ["KEYS", "read_npz", "read_opencv_calibration"]
@@ -46,12 +46,7 @@ def read_npz(path: str | os.PathLike) -> dict:
 
 
 def _read(path: Path) -> dict:
-    path = input_file(path, "calibration file")
-    try:
-        with open(path, "rb") as handle:
-            magic = handle.read(4)
-    except OSError as exc:
-        raise InputError(f"cannot read calibration file {path}: {reason(exc)}") from exc
+    path, magic = read_head(path, 4)
     if magic.startswith(b"PK") or path.suffix.lower() == ".npz":
         return read_npz(path)
     return read_filestorage(path)
