@@ -8,6 +8,8 @@ another one nor this file: what several files share is a fixture here.
 - ``small_pair``: a 24x40 pair with disparity 3 written in every input form, and broken files.
 - ``middeval3``: builds a MiddEval3-like data folder of three small scenes.
 - ``write_eth3d``: writes an ETH3D two-view data folder of small scenes.
+- ``tiny``: the one cheap configuration that tests of plumbing (files, folders, tiles, cluster,
+  command line) share, as ``Params`` and as command-line options, so that they compile few graphs.
 - ``run_cli``: the command line's ``main`` (``sswjax.cli``) in process, returning ``(exit code, stdout, stderr)``.
 - ``run_on_devices``: a Python script in a fresh process with N simulated CPU devices.
 - ``user_environment``: the environment of a process that compiles as a user's does.
@@ -165,6 +167,24 @@ class FakeMiddEval3:
 @pytest.fixture(scope="session")
 def middeval3() -> FakeMiddEval3:
     return FakeMiddEval3()
+
+
+class Tiny(NamedTuple):
+    """``params``: ``paper`` without superpixels, a 3 x 3 box aggregation; ``args``: the same as
+    command-line options. Tests of what a preset computes use the preset, never this."""
+
+    params: object
+    args: tuple[str, ...]
+
+
+@pytest.fixture(scope="session")
+def tiny() -> Tiny:
+    import sswjax
+
+    params = sswjax.preset("paper").replace(segments=None, aggregation={"kind": "box", "radius": 1})
+    args = ("--preset", "paper", "--set", "segments=none", "--set", "aggregation=box",
+            "--set", "aggregation.radius=1")
+    return Tiny(params, args)
 
 
 @pytest.fixture()

@@ -42,3 +42,12 @@ def test_the_suites_compiler_flags_give_the_users_maps_to_rounding(tmp_path, use
     assert difference.max() < 0.1
     assert (difference > 1e-3).mean() < 0.05
     assert np.all(np.isfinite(suite) == np.isfinite(user))
+
+
+def test_the_shared_tiny_configuration_says_the_same_on_the_command_line(tiny, tmp_path, run_cli):
+    """``tiny.args`` and ``tiny.params`` are one configuration (conftest.py)."""
+    import sswjax
+
+    code, _, err = run_cli(["params", *tiny.args, "-o", tmp_path / "p.json"])
+    assert code == 0, err
+    assert sswjax.load_params(tmp_path / "p.json") == tiny.params
