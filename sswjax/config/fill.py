@@ -15,7 +15,7 @@ from sswjax.config.fields import ConfigError, option, stage_config
 from sswjax.config.parts import Part, register
 from sswjax.stages.fill import SOURCES, vote_fill, weighted_median_fill
 from sswjax.stages.planes import plane_refine
-from sswjax.stages.refinement import MEDIANS, fill_invalid
+from sswjax.stages.background import MEDIANS, fill_invalid
 
 __all__ = ["BackgroundFill", "Fill", "LeftBandFill", "PlaneFill", "VoteFill",
            "WeightedMedianFill"]
@@ -68,7 +68,7 @@ class BackgroundFill(_MedianOptions):
     (Eq. 9 as we read it)."""
 
     def fill(self, disparity, valid, *, guide, labels, num_segments):
-        """:func:`~sswjax.stages.refinement.fill_invalid`."""
+        """:func:`~sswjax.stages.background.fill_invalid`."""
         return fill_invalid(disparity, valid, radius=self.median_radius, median=self.median)
 
 
@@ -80,7 +80,7 @@ class LeftBandFill(_MedianOptions):
     band_fit: int = _band_fit()
 
     def fill(self, disparity, valid, *, guide, labels, num_segments):
-        """:func:`~sswjax.stages.refinement.fill_invalid` with ``left_band``."""
+        """:func:`~sswjax.stages.background.fill_invalid` with ``left_band``."""
         return fill_invalid(disparity, valid, radius=self.median_radius, left_band=True,
                             median=self.median, band_fit=self.band_fit)
 

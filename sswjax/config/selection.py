@@ -2,7 +2,7 @@
 reject a pixel's disparity (left-right check, uniqueness, the aggregated cost's right view).
 
 The graph (:mod:`sswjax.graph.refine`) reads these options; the stage functions are those of
-:mod:`sswjax.stages.selection` and :mod:`sswjax.stages.refinement`.
+:mod:`sswjax.stages.selection` and :mod:`sswjax.stages.checks`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Conventions: a peer is a callable ``(left, right, ndisp) -> float32 (H, W)`` taking images as
 read from disk (uint8/uint16, gray or colour) and returning a dense disparity map in pixels.
-Invalid pixels of a peer are filled like ours (:func:`sswjax.stages.refinement.fill_background`,
+Invalid pixels of a peer are filled like ours (:func:`sswjax.stages.background.fill_background`,
 the smaller of the nearest valid disparities on the row), so every method is scored dense.
 
 - ``bm``: OpenCV's ``StereoBM``, block 9 on the luma, uniqueness 10, the same speckle filter
@@ -24,7 +24,7 @@ import copy
 import numpy as np
 
 from sswjax.stages.color import rgb_to_gray
-from sswjax.stages.refinement import fill_background
+from sswjax.stages.background import fill_background
 
 
 def _to_uint8(image: np.ndarray) -> np.ndarray:
@@ -178,7 +178,7 @@ def pandora_disparity(left: np.ndarray, right: np.ndarray, ndisp: int) -> np.nda
     P1 = 8, P2 = 32 (``sgm_penalty``, constant P2), winner-takes-all, V-fit sub-pixel
     refinement, 3x3 median filter, accurate left-right cross-check (threshold 1 px, Pandora's
     default). Pixels Pandora leaves invalid (NaN: image border of the census window,
-    occlusions, mismatches) are filled with :func:`sswjax.stages.refinement.fill_background`.
+    occlusions, mismatches) are filled with :func:`sswjax.stages.background.fill_background`.
 
     Pandora's disparity is ``x_right - x_left`` (negative for a standard rectified pair), so it
     searches ``[-(ndisp - 1), 0]`` and the result is negated to Middlebury's positive convention.

@@ -16,7 +16,7 @@ from sswjax.graph.volume import Scene, Selected, cost_bound
 from sswjax.stages.baselines import box_filter
 from sswjax.stages.confidence import ConfidenceCues
 from sswjax.stages.medians import side_window_median_filter
-from sswjax.stages.refinement import left_right_distance, uniqueness_violations
+from sswjax.stages.checks import left_right_distance, uniqueness_violations
 from sswjax.stages.selection import SUBPIXEL_FITS
 
 __all__ = ["refine"]

@@ -18,7 +18,8 @@ the configuration of each is in :mod:`sswjax.config`; ``reference`` holds the te
 ``cross_scale``   semi-global paths at half resolution with the fine cost's detail
 ``bands``         per-pixel disparity bands around an estimate (tSGM, Rothermel et al. 2012)
 ``selection``     the running fold of both views' winners, sub-pixel, soft-argmin (Eq. 8)
-``refinement``    the left-right distance, uniqueness test and background filling (Eq. 9)
+``checks``        the left-right distance and the uniqueness test (Eq. 9)
+``background``    the background fill of the rejected pixels, the row's farther side (Eq. 9)
 ``fill``          guided weighted-median and vote fills of the rejected pixels (Eq. 9, weighted)
 ``confidence``    confidence measures and validity bits from the fold's cues and the refinement
 ``planes``        robust plane per superpixel, filling the pixels it supports

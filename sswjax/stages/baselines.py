@@ -27,20 +27,14 @@ import jax
 import jax.numpy as jnp
 
 from sswjax._checks import check_guide, check_map, check_positive
-from sswjax.stages.filters import edge_pad
+from sswjax.stages.filters import channels_first, edge_pad
 from sswjax.stages.medians import median_filter
 
-__all__ = ["bilateral_filter", "box_filter", "box_mean", "channels_first", "median_cost_filter"]
+__all__ = ["bilateral_filter", "box_filter", "box_mean", "median_cost_filter"]
 
 
 # ---------------------------------------------------------------------------------------------
 # Entry checks and shared helpers.
-
-
-def channels_first(guide: jax.Array) -> jax.Array:
-    """(H, W, C) or (H, W) -> float32 (C, H, W)."""
-    g = guide if guide.ndim == 3 else guide[..., None]
-    return jnp.moveaxis(g.astype(jnp.float32), -1, 0)
 
 
 def _window_sum_1d(padded: jax.Array, radius: int, axis: int) -> jax.Array:
@@ -153,7 +147,7 @@ def bilateral_filter(
     check_positive("sigma_color", sigma_color)
     r = radius
     height, width = x.shape[-2:]
-    g = channels_first(guide)
+    g = channels_first(guide.astype(jnp.float32))
     g_padded = edge_pad(g, r)
     x_padded = edge_pad(x.astype(jnp.float32), r)
     space_scale = -0.5 / jnp.square(jnp.asarray(sigma_space, jnp.float32))

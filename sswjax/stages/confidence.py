@@ -11,7 +11,7 @@ The cues (:class:`ConfidenceCues`) come out of the running winner-takes-all fold
   adjacent to it, ``c2`` (the runner-up of the cost curve's other valleys);
 - ``lr_distance``: ``|d_L(x) - d_R(x - d_L(x))|`` in pixels of the winners of both views,
   ``+inf`` where ``x - d_L(x) < 0`` (no pixel of the right image to compare with;
-  :func:`~sswjax.stages.refinement.left_right_distance`, what the left-right check thresholds);
+  :func:`~sswjax.stages.checks.left_right_distance`, what the left-right check thresholds);
 - ``initial``: the winner with its sub-pixel parabola, before filling and the median;
 - ``lr_failed``: the pixels the left-right check rejected (then filled), with those the
   uniqueness and aggregated-view tests add (``checks.uniqueness_gap``,

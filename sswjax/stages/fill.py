@@ -1,7 +1,7 @@
 """Guided fills of the pixels the left-right check rejects: a weighted median and a vote.
 
 Eq. (9) of the paper fills a rejected pixel with "the median of valid neighbours"; our reading
-(:func:`sswjax.stages.refinement.fill_invalid`) takes the background disparity of the row and
+(:func:`sswjax.stages.background.fill_invalid`) takes the background disparity of the row and
 then a plain median over a square. Here the median is *weighted* by the left image instead, as
 in the post-processing of Rhemann, Hosni, Bleyer, Rother & Gelautz, "Fast Cost-Volume Filtering
 for Visual Correspondence and Beyond" (CVPR 2011): the neighbours that share the pixel's colour
@@ -32,7 +32,7 @@ from sswjax._checks import check_floating, check_rank, check_same_shape
 from sswjax._checks import check_guide, check_positive
 from sswjax.stages.baselines import box_mean
 from sswjax.stages.guided import guided_filter_fn
-from sswjax.stages.refinement import fill_background, fill_invalid, nearest_valid
+from sswjax.stages.background import fill_background, fill_invalid, nearest_valid
 
 SOURCES = ("filled", "valid")
 """What the histogram counts: every pixel of the background-filled map, or the valid ones."""
@@ -52,7 +52,7 @@ def weighted_median_fill(
 ) -> jax.Array:
     """Fill the invalid pixels with a guided weighted median of their neighbours' disparities.
 
-    First the background fill (:func:`~sswjax.stages.refinement.fill_background`, the row's
+    First the background fill (:func:`~sswjax.stages.background.fill_background`, the row's
     nearer-background valid disparity, with the left-band rule when ``left_band``) gives every
     pixel a disparity; then each invalid pixel takes the weighted ``quantile`` of the integer
     disparities ``round(d)`` in its ``(2r+1)^2`` window, weighted by the guided filter's kernel
@@ -82,7 +82,7 @@ def weighted_median_fill(
         The histogram counts every pixel of the background-filled map (``"filled"``) or only
         the valid ones (``"valid"``).
     left_band, band_fit : bool, int
-        Passed to :func:`~sswjax.stages.refinement.fill_background`.
+        Passed to :func:`~sswjax.stages.background.fill_background`.
 
     Returns
     -------
@@ -165,7 +165,7 @@ def vote_fill(
     """Fill the invalid pixels by an intensity-weighted vote among three candidates.
 
     The candidates of an invalid pixel are its value in the left-band median fill
-    (:func:`~sswjax.stages.refinement.fill_invalid` with ``left_band=True``), and the nearest
+    (:func:`~sswjax.stages.background.fill_invalid` with ``left_band=True``), and the nearest
     valid disparities to its left and to its right on its row (the two surfaces an occlusion
     lies between; the median fill where a side has none). Each candidate's support is the sum,
     over the samples ``(y + i step, x + j step)`` of the ``(2r+1)^2`` window
@@ -197,7 +197,7 @@ def vote_fill(
     median : {"square", "separable"}
         The median of the median fill.
     band_fit : int >= 0
-        The left band's line fit (:func:`~sswjax.stages.refinement.fill_background`).
+        The left band's line fit (:func:`~sswjax.stages.background.fill_background`).
 
     Returns
     -------

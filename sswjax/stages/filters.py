@@ -147,11 +147,12 @@ def side_window_index(guide: jax.Array, *, radius: int, method: str = "slices") 
     check_rank("guide", guide, (2, 3))
     check_floating("guide", guide)
     check_positive_int("radius", radius)
-    return _closest_window_index(_channels_first(guide), radius, method)
+    return _closest_window_index(channels_first(guide), radius, method)
 
 
-def _channels_first(guide: jax.Array) -> jax.Array:
-    """Guide (H, W, C) or (H, W) -> (C, H, W), the layout the window sums batch over."""
+def channels_first(guide: jax.Array) -> jax.Array:
+    """Guide (H, W, C) or (H, W) -> (C, H, W) of the same dtype, the layout the window sums
+    batch over."""
     return jnp.moveaxis(guide, -1, 0) if guide.ndim == 3 else guide[None]
 
 
@@ -247,7 +248,7 @@ def side_window_box_filter(
         check_floating("guide", guide)
         if guide.shape[:2] != x.shape[-2:]:
             raise ValueError(f"guide size {guide.shape[:2]} differs from x size {x.shape[-2:]}")
-        guide = _channels_first(guide)
+        guide = channels_first(guide)
 
     def one_pass(carry):
         x, guide = carry

@@ -16,7 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from sswjax._checks import check_guide, check_map, check_positive, check_positive_int
-from sswjax.stages.baselines import box_mean, channels_first
+from sswjax.stages.baselines import box_mean
+from sswjax.stages.filters import channels_first
 
 __all__ = ["guided_filter", "guided_filter_fn", "iterated_guided_filter"]
 
@@ -78,7 +79,7 @@ def _inverse_regularised_covariance(g: jax.Array, mean_g: jax.Array, radius: int
 
 def guided_filter_fn(guide: jax.Array, radius: int, eps) -> Callable[[jax.Array], jax.Array]:
     """Precompute the guide statistics once; return ``apply(p)`` filtering (..., H, W) inputs."""
-    g = channels_first(guide)
+    g = channels_first(guide.astype(jnp.float32))
     # Two changes of guide coordinates that leave q exactly unchanged (in exact arithmetic)
     # but shrink float32 cancellation in the window moments and the 3 x 3 inverse:
     # an orthonormal change of colour basis (Sigma -> Q Sigma Q^T, eps U unchanged, a -> Q a,

@@ -5,7 +5,7 @@ volume (:func:`cost_volume`, where the graph builds blocks with
 :func:`~sswjax.stages.cost.matching_cost`), the winner-takes-all and its parabola on a whole
 volume (where the graph folds running minima, :func:`~sswjax.stages.selection.fold_winners`),
 the right view's cost volume and the left-right check as a mask (where the graph keeps the
-distance, :func:`~sswjax.stages.refinement.left_right_distance`). Nothing in the package calls
+distance, :func:`~sswjax.stages.checks.left_right_distance`). Nothing in the package calls
 them.
 
 Array conventions (whole module): cost volumes float32 ``(D, H, W)``, lower is better;
@@ -21,7 +21,7 @@ from jax import lax
 
 from sswjax._checks import check_floating, check_positive_int, check_rank
 from sswjax.stages.cost import check_image, matching_cost, matching_features
-from sswjax.stages.refinement import left_right_distance
+from sswjax.stages.checks import left_right_distance
 from sswjax.stages.selection import parabola_refine
 
 __all__ = ["cost_volume", "left_right_consistency", "right_cost_volume", "subpixel_parabola",

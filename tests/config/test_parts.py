@@ -10,7 +10,7 @@ from sswjax.config import (LocalContrast, PlaneFill, SemiGlobal, VoteFill, Weigh
 from sswjax.stages.fill import vote_fill, weighted_median_fill
 from sswjax.stages.planes import plane_refine
 from sswjax.stages.preprocess import local_contrast_normalization
-from sswjax.stages.refinement import fill_invalid
+from sswjax.stages.background import fill_invalid
 from sswjax.stages.sgm import semi_global_sums
 
 RNG = np.random.default_rng(0)

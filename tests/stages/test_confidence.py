@@ -19,7 +19,7 @@ from sswjax.stages.confidence import (
     ratio_confidence,
     validity_mask,
 )
-from sswjax.stages.refinement import left_right_distance as lr_distance
+from sswjax.stages.checks import left_right_distance as lr_distance
 from sswjax.stages.selection import fold_winners, no_winners
 
 

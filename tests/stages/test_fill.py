@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sswjax.stages.fill import vote_fill, weighted_median_fill
-from sswjax.stages.refinement import fill_background, fill_invalid
+from sswjax.stages.background import fill_background, fill_invalid
 
 
 def guided_kernel_reference(guide, r, eps):

@@ -1,4 +1,4 @@
-"""Tests for sswjax.stages.selection and sswjax.stages.refinement against NumPy references and hand cases."""
+"""Tests for sswjax.stages.selection and sswjax.stages.checks and sswjax.stages.background against NumPy references and hand cases."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -6,7 +6,8 @@ import pytest
 
 from sswjax.stages.reference import (left_right_consistency, right_cost_volume, subpixel_parabola,
                                      winner_takes_all)
-from sswjax.stages.refinement import fill_background, fill_invalid, uniqueness_violations
+from sswjax.stages.background import fill_background, fill_invalid
+from sswjax.stages.checks import uniqueness_violations
 from sswjax.stages.selection import equiangular_refine, fold_winners, no_winners, soft_argmin
 
 # ---------------------------------------------------------------------------------------------
