@@ -15,18 +15,28 @@ trainingQ (the timed set of the speed goals) and through 64-pixel shape buckets 
 
 Methods: the presets of :data:`sswjax.PRESETS` and the peers of :data:`sswjax.evaluation.methods.PEERS`
 that are installed (OpenCV StereoBM, SGBM 3-way, SGBM HH; CNES Pandora); ``--methods`` narrows.
-Writes ``front.md``, ``front.csv`` and ``front.png`` (time per pair against bad 2.0, log time
-axis, one panel per set) into ``-o``, and records ``jax.devices()``.
+Writes ``front.md``, ``front.csv``, ``front.json`` (the run's date, machine and command) and
+``front.png`` (time per pair against bad 2.0, log time axis, one panel per set) into ``-o``.
+``--page docs/results.md`` also writes the user's results page (:func:`results_page`) from the
+run; with ``--from FOLDER`` it writes the page from an earlier run's ``front.csv``, running
+nothing: the page is generated, never edited by hand.
 
-    python benchmarks/front.py [--data DIR] [--sets trainingQ KITTI2012] [--repeats 3] [-o benchmarks/results/front]
+    python benchmarks/front.py [--data DIR] [--sets trainingQ KITTI2012] [--repeats 3] [-o benchmarks/results/front] [--page docs/results.md]
+    python benchmarks/front.py --page docs/results.md --from benchmarks/results/front
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import datetime
+import json
+import os
 import platform
+import shlex
+import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -220,6 +230,135 @@ def plot(rows: list[dict], sets: list[str], path: Path) -> None:
     plt.close(figure)
 
 
+SET_TITLES = {  # set -> (heading, what its errors are)
+    "trainingQ": ("MiddEval3 trainingQ",
+                  "weighted means over the pairs, nonocc / all pixels with ground truth; "
+                  "presets at each pair's exact shape"),
+    "KITTI2012": ("KITTI 2012", "means over the pairs, all pixels with ground truth; presets "
+                                "through 64-pixel shape buckets"),
+    "Middlebury2001": ("Middlebury 2001", "means over the scenes, all pixels with ground truth; "
+                                          "presets through 64-pixel shape buckets"),
+}
+"""How the results page names each set and its errors."""
+
+PROTOCOL = (
+    "Each pair is run once by every method (the presets compile), then each method in turn "
+    "{repeats} times alternating with OpenCV SGBM 3-way: a method's time on a pair is its best "
+    "run, its ratio the best run over the best of the SGBM runs beside it, so that both share "
+    "the machine's state. \"s / pair\" is the median over a set's pairs of the time, \"x SGBM\" "
+    "the median of the ratios; errors are bad 2.0, 1.0 and 0.5 (% of pixels more than that "
+    "many pixels off; KITTI also 3.0). \"ahead\": lower bad 2.0 (all pixels) than every peer at "
+    "least as fast. The best value of each column is in bold.")
+"""The front's protocol as the results page states it."""
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a ``front.csv``: numbers as floats, ``True``/``False`` as booleans, empty
+    cells left out."""
+    with open(path, newline="") as handle:
+        return [{k: v if k in ("method", "kind") else v == "True" if v in ("True", "False")
+                 else float(v) for k, v in row.items() if v != ""}
+                for row in csv.DictReader(handle)]
+
+
+def run_meta(folder: Path) -> dict:
+    """What :func:`results_page` says of a run: ``folder/front.json`` as :func:`main` writes
+    it, or, for a run written before it, the machine and repeats of ``front.md``'s last line
+    and the date of the commit that added ``front.csv`` (``"unknown"`` without git)."""
+    if (folder / "front.json").is_file():
+        return json.loads((folder / "front.json").read_text())
+    footer = next((line for line in (folder / "front.md").read_text().splitlines()[::-1]
+                   if line.startswith("Devices:")), "") if (folder / "front.md").is_file() else ""
+    machine, _, rest = footer.removeprefix("Devices: ").partition("; each method ")
+    repeats = int(rest.split()[0]) if rest[:1].isdigit() else 3
+    try:
+        date = subprocess.run(["git", "log", "-1", "--format=%cs", "--", "front.csv"], cwd=folder,
+                              capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        date = ""
+    return {"date": date or "unknown", "machine": machine or "not recorded", "repeats": repeats,
+            "command": f"python benchmarks/front.py --repeats {repeats} -o {folder.as_posix()}"
+                       " (the run's options were not recorded: this is the default run)"}
+
+
+def _label(row: dict) -> str:
+    name = row["method"]
+    if row.get("kind") == "preset" or name not in PEERS:
+        return f"`{name}`"
+    return f"{PEERS[name].summary.split(' (')[0].split(', ')[0]} (`{name}`)"
+
+
+def _set_table(rows: list[dict], set_name: str) -> list[str]:
+    """One set's Markdown table: each method's time, ratio, errors by threshold and whether it
+    is ahead of every faster peer."""
+    shown = [row for row in rows if f"{set_name} s/pair" in row]
+    present = [(region, key) for region, key in COLUMNS[set_name]
+               if any(f"{set_name} {key} {region}" in row for row in shown)]
+    thresholds = list(dict.fromkeys(key for _, key in present))
+    regions = {key: [region for region, k in present if k == key] for key in thresholds}
+    best = {column: min(row[column] for row in shown if column in row)
+            for column in (f"{set_name} {key} {region}" for key in thresholds
+                           for region in regions[key]) if any(column in r for r in shown)}
+
+    def cell(row, column, digits):
+        if column not in row:
+            return ""
+        text = f"{row[column]:.{digits}f}"
+        return f"**{text}**" if best.get(column) == row[column] else text
+
+    header = ["method", "s / pair", "x SGBM",
+              *(f"bad {key[3:]} ({' / '.join(regions[key])})" for key in thresholds), "ahead"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for row in shown:
+        ahead = row.get(f"{set_name} ahead")
+        cells = [_label(row), f"{row[f'{set_name} s/pair']:.3f}",
+                 f"{row[f'{set_name} x sgbm']:.1f}",
+                 *(" / ".join(cell(row, f"{set_name} {key} {region}", 2)
+                              for region in regions[key]) for key in thresholds),
+                 "" if ahead is None else "yes" if ahead else "no"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def results_page(rows: list[dict], meta: dict, folder: Path, page: Path) -> str:
+    """The user's results page (Markdown) from a front run: its rows (``front.csv``), ``meta``
+    (:func:`run_meta`), the run's ``folder`` and where the page goes (``page``, for the
+    relative links). The page says that it is generated, and by which command."""
+    link = Path(os.path.relpath(folder, page.parent)).as_posix()
+    regenerate = (f"python benchmarks/front.py --page {page.as_posix()} "
+                  f"--from {folder.as_posix()}")
+    sets = [s for s in SETS if any(f"{s} s/pair" in row for row in rows)]
+    command, _, remark = meta["command"].partition(" (")
+    paragraphs = [
+        f"Generated by `{regenerate}` from [front.csv]({link}/front.csv); do not edit by hand "
+        "(a new run of the front writes it again with `--page`).",
+        f"Figures as of {meta['date']}: {meta['machine']}; each method {meta['repeats']} times "
+        f"per pair. The run: `{command}`" + (f" ({remark}." if remark else "."),
+        PROTOCOL.format(repeats=meta["repeats"]),
+        "The presets (`--preset NAME`, `sswjax.preset(NAME)`):"]
+    out = ["# Results: every preset against the peers", ""]
+    out += [paragraphs[0], ""]  # the command whole on its line, to copy
+    for paragraph in paragraphs[1:]:
+        out += [textwrap.fill(paragraph, 100, break_on_hyphens=False, break_long_words=False), ""]
+    out[-1:] = [textwrap.fill(f"- `{name}`: {entry.summary}", 100, subsequent_indent="  ",
+                              break_on_hyphens=False) for name, entry in sswjax.PRESETS.items()]
+    out.append("")
+    if (folder / "front.png").is_file():
+        out += [f"![Time per pair against bad 2.0 on each set, presets and peers]({link}/front.png)",
+                ""]
+    for set_name in sets:
+        title, what = SET_TITLES.get(set_name, (set_name, ""))
+        out += [f"## {title}", "", textwrap.fill(f"Errors in %: {what}.", 100), "",
+                *_set_table(rows, set_name), ""]
+    return "\n".join(out)
+
+
+def write_page(folder: Path, page: Path) -> None:
+    """Write :func:`results_page` of the run in ``folder`` to ``page``."""
+    page.parent.mkdir(parents=True, exist_ok=True)
+    page.write_text(results_page(read_rows(folder / "front.csv"), run_meta(folder), folder, page))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2]
@@ -233,14 +372,22 @@ def main(argv=None) -> int:
     parser.add_argument("-o", "--output", type=Path, default=Path("benchmarks/results/front"))
     parser.add_argument("--plot-only", action="store_true",
                         help="redraw front.png from the front.csv in -o, running nothing")
+    parser.add_argument("--page", type=Path,
+                        help="also write the results page (docs/results.md) from the run")
+    parser.add_argument("--from", dest="source", type=Path, metavar="FOLDER",
+                        help="with --page: write the page from FOLDER's front.csv, running nothing")
     args = parser.parse_args(argv)
+    if args.source is not None:
+        if args.page is None:
+            parser.error("--from needs --page")
+        write_page(args.source, args.page)
+        return 0
     if args.plot_only:
-        with open(args.output / "front.csv", newline="") as handle:
-            rows = [{k: v if k in ("method", "kind") or v in ("", "True", "False") else float(v)
-                     for k, v in row.items() if v != ""} for row in csv.DictReader(handle)]
+        rows = read_rows(args.output / "front.csv")
         plot(rows, [s for s in args.sets if any(f"{s} s/pair" in r for r in rows)],
              args.output / "front.png")
         return 0
+    started = time.perf_counter()
     if REFERENCE not in args.methods:
         parser.error(f"--methods must include {REFERENCE}, the reference of the time ratios")
     runners = _method_runners(args.methods, args.bucket_step)
@@ -276,8 +423,16 @@ def main(argv=None) -> int:
                   "alternating with SGBM."]
     args.output.mkdir(parents=True, exist_ok=True)
     write_report(args.output, "front", "\n".join(lines), rows, keys)
+    meta = {"date": datetime.date.today().isoformat(),
+            "machine": f"{devices}; {platform.processor() or platform.machine()}, "
+                       f"{os.cpu_count()} CPU cores, JAX {jax.__version__}",
+            "repeats": args.repeats, "minutes": round((time.perf_counter() - started) / 60),
+            "command": shlex.join(["python", "benchmarks/front.py", *(argv or sys.argv[1:])])}
+    (args.output / "front.json").write_text(json.dumps(meta, indent=1) + "\n")
     plot(rows, [s for s in args.sets if any(f"{s} s/pair" in r for r in rows)],
          args.output / "front.png")
+    if args.page is not None:
+        write_page(args.output, args.page)
     return 0
 
 

@@ -171,3 +171,28 @@ def test_grid_refuses_rows_that_miss_a_set(tmp_path):
     done = _grid("held-out", tmp_path / "none.csv", cwd=tmp_path)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1].endswith(f"no such file: {tmp_path / 'none.csv'}")
+
+
+def test_results_page_is_written_from_a_front_csv(tmp_path):
+    """The results page (docs/results.md) is generated from a run's front.csv: every set, method
+    and figure, the run's date, machine and command, and the command that wrote the page."""
+    run = tmp_path / "results" / "front"
+    run.mkdir(parents=True)
+    keys = ["method", "kind", "trainingQ s/pair", "trainingQ x sgbm", "trainingQ bad2.0 nonocc",
+            "trainingQ bad2.0 all", "trainingQ ahead", "Middlebury2001 s/pair",
+            "Middlebury2001 x sgbm", "Middlebury2001 bad2.0 all", "Middlebury2001 ahead"]
+    rows = [["accurate", "preset", 0.5, 9.3, 6.7, 11.47, True, 0.136, 8.8, 1.19, True],
+            ["sgbm", "peer", 0.037, 1.0, 15.43, 22.01, "", 0.012, 1.0, 2.73, ""]]
+    with open(run / "front.csv", "w", newline="") as handle:
+        csv.writer(handle).writerows([keys, *rows])
+    (run / "front.json").write_text('{"date": "2026-12-07", "machine": "cpu:0; x86_64", '
+                                    '"repeats": 3, "command": "python benchmarks/front.py"}')
+    page = tmp_path / "docs" / "results.md"
+    assert front.main(["--page", str(page), "--from", str(run)]) == 0
+    text = page.read_text()
+    assert f"--page {page} --from {run}" in text and "do not edit by hand" in text
+    assert "Figures as of 2026-12-07: cpu:0; x86_64" in text and "python benchmarks/front.py" in text
+    assert "## MiddEval3 trainingQ" in text and "## Middlebury 2001" in text and "## KITTI" not in text
+    assert "| `accurate` | 0.500 | 9.3 | **6.70** / **11.47** | yes |" in text
+    assert "(`sgbm`) | 0.037 | 1.0 | 15.43 / 22.01 |  |" in text
+    assert "](../results/front/front.csv)" in text
