@@ -15,7 +15,7 @@ kernel of XLA's compile; the profiling tool.
     warm call: time, executions, the size of the fused computation and the stage it belongs to,
     then the time per stage. Finds what a stage profile hides: a fusion that carries work of
     the stage before it (XLA CPU fuses producers into consumers; a concatenation or padding at
-    a fusion's root runs element by element: ``docs/speed-and-memory.md``), or a buffer written
+    a fusion's root runs element by element: ``docs/notes/speed-and-memory.md``), or a buffer written
     afresh each call. ``--spans``: each stage's wall time too (its first start and last end,
     the union of its operations' intervals, their number), then the call's idle time.
 ``compile``

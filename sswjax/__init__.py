@@ -17,7 +17,7 @@ API.
 Python's garbage collector is paused while this module imports JAX and the package (and set
 back as it was after): the objects of an import live as long as the process, and the
 collections that their allocations set off scanned them again and again, 0.03-0.05 s of the
-import (``docs/speed-and-memory.md``, "The collector during the import").
+import (``docs/notes/speed-and-memory.md``, "The collector during the import").
 """
 
 import gc

@@ -17,7 +17,7 @@ from sswjax.runtime.executables import BoundedJit, ExecutableCache
 # through sswjax.match with 4 kept: both mapping counts stop growing once the bound is reached
 # (unbounded, each graph of the match added about 50 mappings, 540 for the presets; the 300
 # shapes of the whole graph: executables.py, a concluded benchmark in
-# docs/notes/benchmarks-concluded.md, and docs/speed-and-memory.md).
+# docs/notes/benchmarks-concluded.md, and docs/notes/speed-and-memory.md).
 SCRIPT = r"""
 import json
 import jax.numpy as jnp

@@ -59,7 +59,7 @@ def test_constant_shift_recovered_with_default_params(pair):
     # The default first aligns the rows, measured on a first pass over the pair halved: here
     # its tiles have 72 valid pixels at most, below the floor of 256 (on this white noise, which
     # the halved pass cannot match, such tiles gave spurious offsets of up to a pixel at the
-    # corners: docs/alignment.md, "Limits"), so nothing is moved.
+    # corners: docs/notes/alignment.md, "Limits"), so nothing is moved.
     unaligned = sswjax.match(left, right, ndisp=NDISP, params=sswjax.preset("accurate").replace(
         alignment=None))
     np.testing.assert_array_equal(d, unaligned)

@@ -1,6 +1,6 @@
 """Compile ahead of time: the graphs a later call on pairs of given shapes will run.
 
-A new image shape costs a trace and an XLA compilation (seconds; ``docs/speed-and-memory.md``).
+A new image shape costs a trace and an XLA compilation (seconds; ``docs/notes/speed-and-memory.md``).
 :func:`warm_up` runs :func:`sswjax.match` (or :func:`sswjax.match_with_confidence`) once on a
 blank pair of the shape, with the same parameters and plan, so that this process holds the
 compiled graph, and, when the persistent compilation cache is on

@@ -47,7 +47,7 @@ COMMANDS = ("match", "demo", "evaluate", "download", "params", "rectify", "searc
 ``add_<name>_command(subparsers)``, which adds the command's parser and sets its ``run``. A
 command line imports only the module of the command it names: ``search`` brings optax,
 ``evaluate`` its figures and ``download`` its fetcher, about 0.1 s of a ``match``'s start-up
-(``docs/speed-and-memory.md``). The modules are named here rather than imported at the top so
+(``docs/notes/speed-and-memory.md``). The modules are named here rather than imported at the top so
 that this is so; ``tests/test_architecture.py`` checks each of them as if it were imported."""
 
 
@@ -174,7 +174,7 @@ def console() -> int:
     makes many) would scan them each time. The objects the run left are frozen too when it
     ends, so that Python's finalisation does not collect them one by one before the process
     exits: JAX and its compiled graphs leave about 0.2 s of that work, a sixth of a warm
-    ``sswjax match`` (``docs/speed-and-memory.md``). Exit handlers and the closing of modules run
+    ``sswjax match`` (``docs/notes/speed-and-memory.md``). Exit handlers and the closing of modules run
     as before; only the freeing of memory that the exit returns anyway is skipped. Not for a
     process that goes on (tests, notebooks): call :func:`main` there.
     """

@@ -38,24 +38,24 @@ class VerticalAlignment(Part):
     candidates: int = option(7, static=True, low=3, high=15, odd=True, help="vertical offsets "
                              "tried per tile, centred on 0")
     # 0.4 px (a span of +-1.2 px): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0
-    # and 0.5, among spans of +-0.6 to +-1.33 px (docs/alignment.md, "The candidates' span").
+    # and 0.5, among spans of +-0.6 to +-1.33 px (docs/notes/alignment.md, "The candidates' span").
     step: float = option(0.4, above=0, help="full-resolution pixels between the candidate "
                          "offsets")
     # 3 (with the 'grid' model): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0 and
-    # 0.5, among 2 to 8 tiles a side with the plane and 3 to 6 with the grid (docs/alignment.md,
+    # 0.5, among 2 to 8 tiles a side with the plane and 3 to 6 with the grid (docs/notes/alignment.md,
     # "The tiles' own offsets").
     tiles: int = option(3, static=True, low=2, high=16, help="the offsets are measured on a "
                         "grid of tiles x tiles tiles")
     # 256 (16 x 16 at the measured level): a tile of fewer valid pixels does not count. On
     # white noise, which the first pass cannot match at its halved level, tiles of 72 pixels
     # (a 48 x 96 pair) gave spurious offsets of up to a pixel at the corners; from 384 pixels
-    # on, 99.7 % of the map stayed within 0.1 px (docs/alignment.md, "Limits").
+    # on, 99.7 % of the map stayed within 0.1 px (docs/notes/alignment.md, "Limits").
     min_pixels: int = option(256, static=True, low=1, help="valid pixels a tile needs to count, "
                              "at the measured level")
 
     # 'none': every pixel's cost counts, the mismatched ones' too (their cost hardly varies
     # with the offset): chosen by the held-out rule, on bad 2.0 and over 2.0, 1.0 and 0.5,
-    # against the method's checks and the left-right check alone (docs/alignment.md, "The
+    # against the method's checks and the left-right check alone (docs/notes/alignment.md, "The
     # first pass's checks").
     checks: str = option("none", static=True, choices=FIRST_PASS_CHECKS,
                          help="the pixels of the first pass whose cost counts: 'method' those "

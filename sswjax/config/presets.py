@@ -10,25 +10,25 @@ the memory-bound scans; the same errors within 0.03 on every set) and runs the o
 the uniqueness test on the costs before aggregation, the aggregated cost's right view and the
 left band's fitted line. Every semi-global preset ends with the gated bilateral smoothing of
 the map (two passes, gate 2 px, measured from the map's local slope), chosen on the three sets
-by the same rule over bad 2.0, 1.0 and 0.5 (``docs/precision.md``, ``docs/paper-parts.md``);
+by the same rule over bad 2.0, 1.0 and 0.5 (``docs/notes/precision.md``, ``docs/paper-parts.md``);
 ``accurate`` runs each pass as a row
 then a column of the window, ``fast`` three such passes (the same errors within 0.05 at bad
 2.0, 2-5x less time in the stage).
 ``balanced`` is ``accurate`` coarse-to-fine with the full-resolution band of 7 disparities
-(``benchmarks/grid.py configs``, ``docs/band.md``). ``fast`` fits its doubled map again on the
+(``benchmarks/grid.py configs``, ``docs/notes/band.md``). ``fast`` fits its doubled map again on the
 full-resolution cost, each plane over a 5 x 5 window (``coarse.refit_radius`` 2, chosen on the
 three sets by the rule over bad 2.0, 1.0 and 0.5: ``benchmarks/grid.py refit``,
-``docs/precision.md``), and on the halved pair runs ``accurate``'s one side-window pass, the
+``docs/notes/precision.md``), and on the halved pair runs ``accurate``'s one side-window pass, the
 penalties ``accurate`` had until 2026-12-06 (P1 0.2, P2 1.15, as ``balanced``) and a 7 x 7 fill
 median, chosen with the refit by the same rule (``benchmarks/grid.py configs``,
-``docs/speed.md``). ``accurate``'s own penalties (P1 0.35, P2 2.4) were gridded again on the
+``docs/notes/speed.md``). ``accurate``'s own penalties (P1 0.35, P2 2.4) were gridded again on the
 finished pipeline; ``fast`` and ``balanced`` keep theirs by the rule
-(``docs/beyond-the-paper.md``). ``accurate`` first aligns the right image's rows to the left's
+(``docs/notes/beyond-the-paper.md``). ``accurate`` first aligns the right image's rows to the left's
 (the vertical offset measured on its method over the pair halved once, every pixel of that first
 pass counting: chosen by the rule on bad 2.0 and over 2.0, 1.0 and 0.5, for about a third more
 time), and so does ``balanced`` (its own first pass, chosen by the same rule, for about 45 %
 more time); ``fast`` stays without it (half again its time for little at bad 2.0, measured on a
-first pass or on its coarse pass, ``docs/alignment.md``).
+first pass or on its coarse pass, ``docs/notes/alignment.md``).
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ _PAPER = Params()
 _OCCLUSION_CHECKS = LeftRightCheck(uniqueness_gap=2, uniqueness_radius=2, aggregated_gap=2)
 # The smoothing of the finished map: better than none at bad 2.0, 1.0 and 0.5 on every set.
 # Its gate measured from the map's slope (tilted): chosen by the held-out rule over bad 2.0,
-# 1.0 and 0.5 on the three sets for accurate, balanced and fast (docs/precision.md, "A
+# 1.0 and 0.5 on the three sets for accurate, balanced and fast (docs/notes/precision.md, "A
 # tilted gate").
 _SMOOTHING = GatedBilateralSmoothing(gate=2.0, iterations=2, tilted=True)
 _SEMI_GLOBAL = _PAPER.replace(
@@ -66,22 +66,22 @@ _SEMI_GLOBAL = _PAPER.replace(
     optimizer=SemiGlobal(paths=4, dtype="uint8", p1=0.12, p2=0.8),
     checks=_OCCLUSION_CHECKS,
     # fast's fill on its halved pair: a 7 x 7 separable median, chosen with its refit by the
-    # held-out rule over radii 1 .. 7 (docs/speed.md, "fast's fill on its halved pair").
+    # held-out rule over radii 1 .. 7 (docs/notes/speed.md, "fast's fill on its halved pair").
     fill=LeftBandFill(median_radius=3, median="separable", band_fit=15),
     smoothing=_SMOOTHING,
     # Two lines instead of Eq. 8's parabola: less pixel locking on the semi-global sums, chosen
-    # held out on the three sets for each preset (docs/precision.md, docs/paper-parts.md).
+    # held out on the three sets for each preset (docs/notes/precision.md, docs/paper-parts.md).
     selection=WinnerTakesAll(fit="equiangular"),
 )
 # accurate: one side-window pass, the vote fill with a 19 x 19 separable median instead of
 # three passes and the left-band fill; fast takes the pass.
 _ONE_PASS = SideWindowAggregation(iterations=1)
 # The penalties of fast's halved pair and of balanced: accurate's until 2026-12-06, kept by the
-# held-out rule over 2.0, 1.0 and 0.5 against accurate's new ones (docs/beyond-the-paper.md,
+# held-out rule over 2.0, 1.0 and 0.5 against accurate's new ones (docs/notes/beyond-the-paper.md,
 # "P1 and P2 on the finished pipeline").
 _PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.2, p2=1.15)
 # accurate's penalties, gridded again after the smoothing, its tilt and the vote fill: chosen
-# by the held-out rule on bad 2.0 and over 2.0, 1.0 and 0.5 (docs/beyond-the-paper.md).
+# by the held-out rule on bad 2.0 and over 2.0, 1.0 and 0.5 (docs/notes/beyond-the-paper.md).
 _ACCURATE_PATHS = SemiGlobal(paths=4, dtype="uint8", p1=0.35, p2=2.4)
 _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
     aggregation=_ONE_PASS,
@@ -90,18 +90,18 @@ _ACCURATE_WINDOWS = _SEMI_GLOBAL.replace(
 )
 # The smoothing of accurate and fast as a row then a column of its window (3.5x fewer weights
 # per pass): the cheapest point of the grid within 0.05 of the held-out choice at bad 2.0 on
-# every set (benchmarks/grid.py smoothing, docs/precision.md); balanced takes it by the same rule
-# (docs/band.md, "The separable smoothing in balanced"); finest keeps the square.
+# every set (benchmarks/grid.py smoothing, docs/notes/precision.md); balanced takes it by the same rule
+# (docs/notes/band.md, "The separable smoothing in balanced"); finest keeps the square.
 # accurate first measures the rectification's residual vertical offset on its own method over
 # the pair halved and takes it out of the right image: better at bad 2.0, 1.0 and 0.5 on the
-# three sets (docs/alignment.md).
+# three sets (docs/notes/alignment.md).
 _ACCURATE = _ACCURATE_WINDOWS.replace(smoothing=_SMOOTHING.replace(separable=True),
                                       alignment=VerticalAlignment(levels=1))
 # fast's doubled map fitted again on the full-resolution cost: below SGBM at bad 2.0, 1.0 and
-# 0.5 on the three sets, for about a fifth more time (docs/precision.md). With the refit, its
+# 0.5 on the three sets, for about a fifth more time (docs/notes/precision.md). With the refit, its
 # halved pair takes accurate's one side-window pass and its penalties of then (_PATHS) instead
 # of three passes at P1 0.12, P2 0.8: chosen by the held-out rule in every fold, on bad 2.0
-# and over 2.0, 1.0 and 0.5, for 5-10 % less time (docs/speed.md, "fast's halved pair as
+# and over 2.0, 1.0 and 0.5, for 5-10 % less time (docs/notes/speed.md, "fast's halved pair as
 # accurate's").
 _FAST = _SEMI_GLOBAL.replace(aggregation=_ONE_PASS, optimizer=_PATHS,
                              coarse=CoarseToFine(levels=1, refit_radius=2),
@@ -123,7 +123,7 @@ PRESETS: dict[str, Preset] = {
                    "below 2 pixels"),
     # balanced aligns as accurate does, its first pass its own method over the pair halved:
     # chosen by the held-out rule on bad 2.0 and over 2.0, 1.0 and 0.5, against no alignment
-    # and the offset measured on its own coarse pass (docs/alignment.md, "On the coarse pass").
+    # and the offset measured on its own coarse pass (docs/notes/alignment.md, "On the coarse pass").
     "balanced": Preset(_ACCURATE.replace(coarse=CoarseToFine(levels=1), optimizer=_PATHS,
                                          band=DisparityBand(width=7)),
                        "aligned as accurate, then accurate on the pair halved and again at "

@@ -21,7 +21,7 @@ class ShapeBuckets(NamedTuple):
     never chosen); results are cropped back. The graph is told the pair's own size and
     matches the padding as the world beyond the pair's edge (:mod:`sswjax.graph.padding`), so
     the maps equal those of the exact shape (measured on the three shared sets:
-    ``docs/speed-and-memory.md``). The defaults put the 15 MiddEval3 trainingQ pairs
+    ``docs/notes/speed-and-memory.md``). The defaults put the 15 MiddEval3 trainingQ pairs
     into three shapes (512x512x96, 512x768x96, 512x768x192).
     """
 

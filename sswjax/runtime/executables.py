@@ -9,7 +9,7 @@ compiles each call signature with a jitted copy of its own and keeps the :data:`
 recently used across every bounded function (:class:`ExecutableCache`); the least recently
 used is cleared and dropped, which releases its mappings. A graph met again after its
 eviction compiles again, from the persistent compilation cache when that is on
-(:mod:`sswjax.runtime.compilation`; ``docs/speed-and-memory.md`` measures both).
+(:mod:`sswjax.runtime.compilation`; ``docs/notes/speed-and-memory.md`` measures both).
 
 The API's entry points (:func:`sswjax.match`, :func:`sswjax.match_with_confidence`, the
 batches of :mod:`sswjax.api.batch`) go through it; :func:`sswjax.ssw_disparity` called

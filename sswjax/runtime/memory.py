@@ -6,7 +6,7 @@ floored by what compiling the graph takes:
 coefficients were fitted (non-negative least squares of relative errors) to the peak resident
 memory (``ru_maxrss``) of fresh processes that read a pair and matched it on the CPU, and the
 floor is the peak of a tiny pair: ``python benchmarks/memory.py fit`` measures and fits, and
-its table is in ``docs/speed-and-memory.md``. The terms:
+its table is in ``docs/notes/speed-and-memory.md``. The terms:
 
 ``base``
     1: Python, NumPy, JAX and XLA's compiler and runtime.
@@ -98,7 +98,7 @@ SLACK = 150_000_000
 
 STATED_RATIO = 1.75
 """Estimates are between 1 and this many times the measured peak (1.22 to 1.73 on the fit's
-sizes, ``docs/speed-and-memory.md``), more where the compile floor decides (small shapes)."""
+sizes, ``docs/notes/speed-and-memory.md``), more where the compile floor decides (small shapes)."""
 
 
 def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None = None,

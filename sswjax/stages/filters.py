@@ -215,7 +215,7 @@ def side_window_box_filter(
     first are one loop of the graph (:func:`~sswjax.stages.loops.repeated`: compiled once; the
     first pass stays outside it, where XLA fuses it with the cost before): ``fast``'s three
     passes compiled in the same time within 0.15 s and its warm call took 2-7 % less
-    (docs/speed-and-memory.md).
+    (docs/notes/speed-and-memory.md).
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ Why: a Python loop over the passes of a filter traces every pass anew, and XLA c
 copy separately: the same machine code emitted, optimised and linked once per pass. As a loop
 (``lax.fori_loop``, a while loop of the graph) the pass is compiled once and its result is a
 buffer the next pass reads. Measured on ``accurate`` (trainingQ Motorcycle and Teddy, fresh
-compilations, ``docs/speed-and-memory.md``): the side-window median's two passes as a loop
+compilations, ``docs/notes/speed-and-memory.md``): the side-window median's two passes as a loop
 compile 0.2-0.45 s faster, the smoothing's two 0.0-0.26 s, and the warm calls are unchanged;
 ``fast``'s second and third side-window aggregation passes as a loop compile in the same time
 and its warm call takes 2-7 % less. The maps are the same bit for bit.

@@ -101,7 +101,7 @@ def separable_median_filter(x: jax.Array, *, radius: int) -> jax.Array:
     Narendra, "A Separable Median Filter for Image Noise Smoothing", IEEE TPAMI 3(1), 1981: the
     median of the ``2r + 1`` column medians of a ``(2r+1) x (2r+1)`` window, an approximation of
     its median (:func:`median_filter`) that needs two ``2r + 1``-input sorting networks per pixel
-    instead of one ``(2r+1)^2``-input network (``docs/beyond-the-paper.md``, "A separable fill
+    instead of one ``(2r+1)^2``-input network (``docs/notes/beyond-the-paper.md``, "A separable fill
     median"). Like the square median, it keeps straight edges and removes structures thinner
     than ``r + 1`` pixels in both directions; it differs from it near corners.
 

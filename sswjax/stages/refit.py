@@ -2,7 +2,7 @@
 
 A map doubled back from the halved pair (:mod:`sswjax.stages.upsampling`) carries the coarse
 fit's sub-pixel error twice over and the doubling's interpolation on top: ``fast`` was far
-behind the full-resolution method below 2 px (``docs/precision.md``). The hierarchical matchers
+behind the full-resolution method below 2 px (``docs/notes/precision.md``). The hierarchical matchers
 (Hirschmuller et al.'s eSGM, ISPRS Annals 2012; the tSGM of Rothermel et al., LC3D 2012) search
 a few disparities around the coarse estimate at the finer level. Here the search keeps only
 its last step: each pixel's disparity is fitted again (the equiangular lines of Shimizu and

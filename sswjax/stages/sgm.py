@@ -106,7 +106,7 @@ def path_penalties(
     dy, dx = direction
     change = jnp.abs(guide - jnp.moveaxis(_shift(jnp.moveaxis(guide, -1, 0), dy, dx), 0, -1))
     # The channels added one by one, not reduced: XLA CPU hands a reduction to its XNNPACK
-    # fusion, whose own threads made whole runs up to 2x slower on 2 cores (docs/speed.md).
+    # fusion, whose own threads made whole runs up to 2x slower on 2 cores (docs/notes/speed.md).
     change = sum(change[..., c] for c in range(change.shape[-1])) / change.shape[-1]
     p1_map = jnp.full(change.shape, p1, jnp.float32)
     p2_map = jnp.maximum(p1_map, p2 / (1.0 + change / sigma))

@@ -13,7 +13,7 @@ between grid points. "Same surface" is decided twice: by the colour (the range w
 joint bilateral filter, Petschnigg et al. 2004, Kopf et al. 2007, with the left image as the
 guide) and by the disparity itself (a neighbour more than ``gate`` pixels away is on another
 surface and has no weight), so depth edges are not blurred even where both sides share a
-colour. Measured in ``docs/precision.md``.
+colour. Measured in ``docs/notes/precision.md``.
 
 Tilted (``tilted=True``): on a slanted surface a neighbour ``k`` pixels away lies ``k`` times
 the slope away in disparity, and a gate measured from the pixel's own disparity drops the far
@@ -160,13 +160,13 @@ def gated_bilateral_smoothing(disparity: jax.Array, guide: jax.Array, *, radius:
     (:func:`~sswjax.stages.buffers.written_once`): XLA CPU fuses the stage before (the side-window
     median's sorting networks) into the edge padding of the first pass, whose concatenation it
     runs element by element; with the map in a buffer first, ``accurate``'s whole graph took
-    15 % less on trainingQ Motorcycle and Teddy (docs/speed-and-memory.md); an
+    15 % less on trainingQ Motorcycle and Teddy (docs/notes/speed-and-memory.md); an
     ``optimization_barrier`` does not survive XLA CPU's fusion passes. The row pass's result
     needs no buffer of its own: its exponentials are not fused into the column pass's readers
     (a buffer after every pass cost ``fast``, 6 passes, about 10 % of its whole call on
-    Motorcycle and Teddy, docs/speed.md). Two or more iterations are one loop of the graph
+    Motorcycle and Teddy, docs/notes/speed.md). Two or more iterations are one loop of the graph
     (:func:`~sswjax.stages.loops.repeated`: compiled once), whose carry is a buffer per
-    iteration: the same warm time for ``accurate`` and ``fast`` (docs/speed-and-memory.md).
+    iteration: the same warm time for ``accurate`` and ``fast`` (docs/notes/speed-and-memory.md).
     The separable passes read the colour weights of
     :func:`line_colour_weights`, computed once for all of them (the guide does not change from
     pass to pass): the same result, bit for bit.

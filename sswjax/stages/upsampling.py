@@ -15,7 +15,7 @@ the neighbour whose mean colour (over its 2 x 2 pixels) is nearest to its own (s
 channel differences), so the edge follows the fine image instead of the coarse grid. The colour
 choice is the range term of joint bilateral upsampling (Kopf et al., "Joint bilateral
 upsampling", SIGGRAPH 2007) taken to its limit, a selection: averaging across a depth edge
-would invent disparities of neither surface. ``docs/speed.md`` gives the measurements that
+would invent disparities of neither surface. ``docs/notes/speed.md`` gives the measurements that
 chose it.
 """
 
