@@ -113,14 +113,14 @@ def check_plan(plan) -> ExecutionPlan:
 
 
 def split_settings(params, changes: Mapping) -> tuple[Params, ExecutionPlan]:
-    """``params`` with the parameter changes of ``changes`` applied, and the plan of its
-    execution names: one mapping of both, as old flat configurations (and benchmark
-    ``--config`` strings) list them.
+    """``params`` with the parameter changes of ``changes`` applied (stages and dotted
+    options, :meth:`sswjax.config.Params.replace`), and the plan of its execution fields: one
+    mapping of both, as the benchmarks' configurations list them.
 
     Examples
     --------
     >>> from sswjax.config import preset
-    >>> params, plan = split_settings(preset("paper"), {"strip_rows": 64, "fill_radius": 3})
+    >>> params, plan = split_settings(preset("paper"), {"strip_rows": 64, "fill.median_radius": 3})
     >>> plan.strip_rows, params.fill.median_radius
     (64, 3)
     """
