@@ -58,10 +58,8 @@ class ExecutionPlan(NamedTuple):
     engine : object or None
         Where the windows run: None (default) in this process, one after the other; an engine
         such as :class:`sswjax.cluster.DaskEngine` runs them elsewhere (its ``execute`` has
-        the signature of :func:`execute`). Never changes the maps. An aligned pair's calls
-        (its first pass, then its windows) run in one ``engine.session()``, a context manager
-        that yields the engine to use for them, after ``engine.fit(left, right, params=,
-        ndisp=, plan=)`` has refused the windows that do not fit.
+        the signature of :func:`sswjax.runtime.execute.run_windows`: the method's call on the
+        pair padded to its bucket and aligned). Never changes the maps.
     carry_paths : bool
         True (default): row strips of a method with semi-global paths over the full-resolution
         volume carry the paths along the rows from strip to strip (two sweeps,
@@ -94,10 +92,9 @@ def check_plan(plan) -> ExecutionPlan:
             raise ValueError(f"plan.{name} must be an integer in [0, {high}], got {value!r}")
     if not isinstance(plan.carry_paths, (bool, np.bool_)):
         raise ValueError(f"plan.carry_paths must be True or False, got {plan.carry_paths!r}")
-    if plan.engine is not None and not all(callable(getattr(plan.engine, name, None))
-                                           for name in ("execute", "session", "fit")):
-        raise TypeError(f"plan.engine must be None or have execute, session and fit methods "
-                        f"(a sswjax.cluster.DaskEngine), got {type(plan.engine).__name__}")
+    if plan.engine is not None and not callable(getattr(plan.engine, "execute", None)):
+        raise TypeError(f"plan.engine must be None or have an execute method (a "
+                        f"sswjax.cluster.DaskEngine), got {type(plan.engine).__name__}")
     if plan.tile and plan.strip_rows:
         raise ValueError(f"plan.tile ({plan.tile}) and plan.strip_rows ({plan.strip_rows}) are "
                          "both set: give tile=S for S x S tiles or strip_rows=R for strips")
