@@ -3,8 +3,8 @@
 in the format their extension names, and are written all or nothing.
 
 The pair is conftest's ``small_pair`` (24x40, disparity 3), copied into each test's folder; the
-parameters are a cheap ``paper`` (no superpixels, box aggregation), so the graphs compile once
-for the whole file (one for ``match``, one for ``match_with_confidence``).
+parameters are conftest's ``tiny``, so the graphs compile once for the whole file (one for
+``match``, one for ``match_with_confidence``), and are those of the other plumbing tests.
 """
 
 from __future__ import annotations
@@ -33,22 +33,21 @@ from sswjax.data.scaled import read_scaled_disparity
 
 NDISP = 8  # conftest's small_pair.ndisp
 SHAPE = (24, 40)
-CHEAP = sswjax.preset("paper").replace(segments=None, aggregation={"kind": "box"})
 OPTIONS = ("-o", "--png", "--depth", "--confidence", "--validity", "--ply", "--kitti-png")
 RIG = ["--focal", 100, "--baseline", 0.5]
 
 
 class Pair:
-    """The inputs of a test, in its own folder: ``left``, ``right``, ``params`` (the cheap
-    parameters), ``calib`` (a Middlebury calib.txt); ``snapshot()`` is their bytes."""
+    """The inputs of a test, in its own folder: ``left``, ``right``, ``params`` (a file of
+    ``params``), ``calib`` (a Middlebury calib.txt); ``snapshot()`` is their bytes."""
 
-    def __init__(self, small_pair, folder: Path):
+    def __init__(self, small_pair, folder: Path, params):
         folder.mkdir(parents=True, exist_ok=True)
         self.left, self.right = folder / "left.png", folder / "right.png"
         shutil.copy(small_pair.folder / "left.png", self.left)
         shutil.copy(small_pair.folder / "right.png", self.right)
         self.params, self.calib = folder / "params.json", folder / "calib.txt"
-        sswjax.save_params(self.params, CHEAP)
+        sswjax.save_params(self.params, params)
         self.calib.write_text("cam0=[100 0 19.5; 0 100 11.5; 0 0 1]\nbaseline=0.5\n")
         self.inputs = {"LEFT": self.left, "RIGHT": self.right, "--params": self.params,
                        "--calib": self.calib}
@@ -62,8 +61,8 @@ class Pair:
 
 
 @pytest.fixture()
-def pair(small_pair, tmp_path) -> Pair:
-    return Pair(small_pair, tmp_path / "in")
+def pair(small_pair, tiny, tmp_path) -> Pair:
+    return Pair(small_pair, tmp_path / "in", tiny.params)
 
 
 def _one_line_error(code, err, *parts):
@@ -298,7 +297,7 @@ def test_params_output_is_not_its_input(pair, tmp_path, run_cli):
 
 
 def test_params_dash_output_prints_and_other_outputs_refuse_a_dash(pair, tmp_path, run_cli,
-                                                                   monkeypatch):
+                                                                   monkeypatch, no_matching):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
@@ -312,11 +311,12 @@ def test_params_dash_output_prints_and_other_outputs_refuse_a_dash(pair, tmp_pat
     assert list(work.iterdir()) == []
 
 
-def test_demo_refuses_before_running_and_writes_both_maps_or_none(tmp_path, run_cli, monkeypatch):
+def test_demo_refuses_before_running_and_writes_both_maps_or_none(tmp_path, run_cli, monkeypatch,
+                                                                  tiny):
     out = tmp_path / "demo"
     out.mkdir()
     params = out / "disp0SSW.pfm"
-    sswjax.save_params(params, CHEAP)
+    sswjax.save_params(params, tiny.params)
     before = params.read_bytes()
     code, _, err = run_cli(["demo", "-o", out, "--params", params])
     _one_line_error(code, err, f"the demo's map {params} is the same file as the input --params")
@@ -443,10 +443,10 @@ def invocations(draw):
 @settings(max_examples=25, deadline=None, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(plan=invocations())
-def test_outputs_are_all_written_or_none_and_inputs_never_change(small_pair, tmp_path, run_cli,
-                                                                 plan):
+def test_outputs_are_all_written_or_none_and_inputs_never_change(small_pair, tiny, tmp_path,
+                                                                 run_cli, plan):
     root = Path(tempfile.mkdtemp(dir=tmp_path))
-    pair = Pair(small_pair, root / "in")
+    pair = Pair(small_pair, root / "in", tiny.params)
     inputs = [pair.left, pair.right, pair.params]
     before = pair.snapshot()
     (root / "out").mkdir()
