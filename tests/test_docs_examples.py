@@ -22,6 +22,10 @@ the examples cannot drift from the code (issue 72, item 11).
   ``--option`` of a line ``sswjax COMMAND ...`` (and of its indented continuation lines) must
   be an option of that command.
 - A fence with no language or another one fails: no block is skipped silently.
+
+And every relative link of ``README.md`` and ``docs/**/*.md`` (``[text](path)``, images too,
+outside code) points to a file or folder that exists (issue 70, item 4: pages move to
+``docs/notes/`` without leaving links behind).
 """
 
 from __future__ import annotations
@@ -270,3 +274,39 @@ def test_text_blocks_name_existing_options(document, parser):
             unknown = sorted(set(_OPTION.findall(line)) - _options(parser, command))
             assert not unknown, (f"{_where(document, block, offset)}: sswjax {command} has no "
                                  f"option {', '.join(unknown)}")
+
+
+_LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
+_INLINE_CODE = re.compile(r"(`+).+?\1", re.DOTALL)
+
+
+def relative_links(markdown: str) -> list[str]:
+    """The targets of a Markdown text's relative links and images, outside fenced blocks and
+    inline code, without their ``#anchor``: web and mail addresses and links within the page
+    (``#anchor`` alone) are left out."""
+    lines, inside = [], None
+    for line in markdown.splitlines():
+        fence = _FENCE.match(line)
+        if fence and (inside is None or (fence["fence"][0] == inside[0]
+                                         and len(fence["fence"]) >= len(inside))):
+            inside = fence["fence"] if inside is None else None
+            continue
+        if inside is None:
+            lines.append(line)
+    text = _INLINE_CODE.sub("", "\n".join(lines))
+    targets = [target.split("#", 1)[0] for target in _LINK.findall(text)]
+    return [t for t in targets if t and not re.match(r"[a-z][a-z0-9+.-]*:", t, re.IGNORECASE)]
+
+
+def test_relative_links_are_found():
+    markdown = ("See [a](docs/a.md#x), ![b](img/b.png \"title\"), [c](https://x.org/c.md), "
+                "[d](#local) and `[e](not/a/link.md)`.\n\n```text\n[f](in/a/block.md)\n```\n")
+    assert relative_links(markdown) == ["docs/a.md", "img/b.png"]
+
+
+def test_every_relative_link_of_the_docs_points_to_a_file():
+    documents = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    broken = [f"{document.relative_to(ROOT)}: {target}" for document in documents
+              for target in relative_links(document.read_text(encoding="utf-8"))
+              if not (document.parent / target).exists()]
+    assert broken == [], "links to files that do not exist:\n" + "\n".join(broken)
