@@ -83,11 +83,11 @@ def test_match_bad_input_one_line_exit_2(pair, tmp_path, capsys, args, message):
 
 def test_bad_params_json(pair, tmp_path, capsys):
     params = tmp_path / "p.json"
-    params.write_text('{"static": {"aggregation_radius": 2.5}}')
+    params.write_text('{"aggregation": {"radius": 2.5}}')
     code = main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", "8",
                  "-o", str(tmp_path / "d.pfm"), "--params", str(params)])
     err = capsys.readouterr().err
-    assert code == 2 and "aggregation_radius" in err and err.count("\n") == 1
+    assert code == 2 and "aggregation.radius" in err and err.count("\n") == 1
 
 
 def test_missing_output_folder(pair, tmp_path, capsys):
@@ -449,22 +449,15 @@ def recorded_match(monkeypatch):
     return calls
 
 
-def test_old_flat_file_strips_are_honoured_and_overridden(pair, tmp_path, run_cli, recorded_match):
-    params = tmp_path / "old.json"
-    params.write_text('{"static": {"strip_rows": 16, "strip_overlap": 8, "n_segments": 0}}')
+def test_the_plan_options_reach_the_call(pair, tmp_path, run_cli, recorded_match):
     argv = ["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP, "-o",
-            tmp_path / "d.pfm", "--params", params]
-    assert run_cli(argv)[0] == 0
-    plan = recorded_match[-1]["plan"]
-    assert (plan.strip_rows, plan.strip_overlap, plan.disparity_chunk) == (16, 8, 4)
-    assert recorded_match[-1]["params"].segments is None
-    assert run_cli(argv + ["--strip-rows", 20, "--disparity-chunk", 0])[0] == 0
+            tmp_path / "d.pfm", "--set", "segments=none", "--set", "aggregation=box"]
+    assert run_cli(argv + ["--strip-rows", 20, "--strip-overlap", 8, "--disparity-chunk", 0]
+                   )[0] == 0
     plan = recorded_match[-1]["plan"]
     assert (plan.strip_rows, plan.strip_overlap, plan.disparity_chunk) == (20, 8, 0)
-    params.write_text('{"strip_rows": -3}')
-    code, _, err = run_cli(argv)
-    assert code == 2 and err == f"sswjax: error: {params}: strip_rows must be an integer >= 0, got -3\n"
-    code, _, err = run_cli(argv[:-2] + ["--strip-rows", "-1"])
+    assert recorded_match[-1]["params"].segments is None
+    code, _, err = run_cli(argv + ["--strip-rows", "-1"])
     assert code == 2 and "argument --strip-rows: must be an integer >= 0, got '-1'" in err
 
 

@@ -235,14 +235,3 @@ def test_evaluate_resume_recomputes_only_missing_or_damaged_scenes(tmp_path, run
 
     rows = (out / "metrics.csv").read_text().splitlines()
     assert [seen(r) for r in rows[1:]] == [expected(r) for r in first_csv.splitlines()[1:]]
-
-
-def test_evaluate_says_an_old_files_strips_do_not_apply(tmp_path, run_cli, middeval3, fake_method):
-    root = middeval3(tmp_path / "MiddEval3")
-    params = tmp_path / "old.json"
-    params.write_text('{"strip_rows": 16, "strip_overlap": 32, "n_segments": 0}')
-    code, _, err = run_cli(["evaluate", "--data", root, "--methods", "fake", "--params", params])
-    assert code == 0, err
-    assert (f"sswjax: note: strip_rows=16 in {params} is how a call runs, not a parameter: "
-            "evaluate chooses strips only where memory needs them (sswjax match takes "
-            "--strip-rows)") in err

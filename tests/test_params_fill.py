@@ -3,8 +3,8 @@ preset), in every command that takes it, and ``sswjax.load_params`` from ``base=
 
 The files written by :func:`sswjax.save_params` (every stage) keep their meaning, those of an
 earlier version too (``tuning/params/searched.json``, written before the alignment, the band
-and the equiangular fit), and so do the old flat files (their missing names at the paper's old
-defaults, as they always were).
+and the equiangular fit); the old flat files are refused in one line that names their converter
+(``sswjax params --upgrade``).
 """
 
 from __future__ import annotations
@@ -139,14 +139,15 @@ def test_complete_files_keep_their_meaning_whatever_the_preset(tmp_path, run_cli
     assert load_params(searched, base="fast") == params
 
 
-def test_old_flat_files_read_as_before_and_refuse_a_preset(tmp_path, run_cli):
+def test_old_flat_files_are_refused_naming_the_converter(tmp_path, run_cli):
     path = _write(tmp_path / "flat.json", {"fill_radius": 3})
-    params = load_params(path)
-    assert params == Params().replace(fill_radius=3)  # the old defaults: the paper's method
-    assert _printed(run_cli, "--params", path) == _printed(run_cli, "--preset", "paper",
-                                                           "--set", "fill.median_radius=3")
-    code, out, err = run_cli(["params", "--preset", "fast", "--params", path])
-    assert (code, out) == (2, "")
-    assert err == (f"sswjax: error: {path}: a file of the old flat names is read whole (what "
-                   "it leaves out at its old defaults, the paper's method), not on the preset "
-                   "'fast': drop --preset or write the file with sswjax params\n")
+    for extra in ([], ["--preset", "fast"]):
+        code, out, err = run_cli(["params", *extra, "--params", path])
+        assert (code, out) == (2, "")
+        assert err == (f"sswjax: error: {path}: parameters in the old flat names "
+                       f"('fill_radius'): convert the file with sswjax params --upgrade {path} "
+                       "-o NEW.json\n")
+    new = tmp_path / "new.json"
+    assert run_cli(["params", "--upgrade", path, "-o", new])[0] == 0
+    assert load_params(new) == Params().replace(**{"fill.median_radius": 3})  # the paper's
+

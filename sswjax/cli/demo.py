@@ -42,8 +42,8 @@ def run_demo(args: argparse.Namespace) -> int:
         raise ValueError(f"output {out} is a file: -o names the folder of the demo's maps")
     check_outputs({"the demo's map": pfm, "the demo's PNG": png} if out.is_dir() else {},
                   {"--params": args.params})
-    params, execution = params_from_args(args)
-    plan = plan_from_args(args, execution)  # an old flat file's strips
+    params = params_from_args(args)
+    plan = plan_from_args(args)
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)

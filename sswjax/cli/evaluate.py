@@ -38,8 +38,7 @@ from sswjax._files import InputError, atomic_output, first_line
 from sswjax._version import __version__
 from sswjax.cli.common import (Interrupted, command_line, raise_if_interrupted, resume_command,
                                uninterrupted)
-from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
-                                params_from_args)
+from sswjax.cli.options import add_parameter_options, params_from_args
 from sswjax.cli.record import RECORD_NAME, RunRecord
 from sswjax.cli.scenes import Problems, checked_scenes, ndisp_line, skipped_markdown
 from sswjax.data.io import read_pfm, write_pfm
@@ -207,16 +206,6 @@ def _remove(folder: Path, paths: list[Path]) -> None:
                 parent.rmdir()
 
 
-def _note_ignored_plan(args: argparse.Namespace, execution: dict) -> None:
-    """Say that the execution options of an old parameter file do not apply to ``evaluate``."""
-    execution = chosen_execution(execution)
-    if execution:
-        listed = ", ".join(f"{name}={value!r}" for name, value in execution.items())
-        print(f"sswjax: note: {listed} in {args.params} is how a call runs, not a parameter: "
-              f"evaluate chooses strips only where memory needs them (sswjax match takes "
-              f"{', '.join(PLAN_OPTIONS[name] for name in execution)})", file=sys.stderr)
-
-
 def _report(results: dict, scenes: list[StereoScene], layout, scoring: Scoring, *,
             root: Path, problems: Problems, ndisp: int | None) -> str:
     """The markdown of the run: the summary, the skipped scenes, then one table per method."""
@@ -259,8 +248,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         check_matplotlib(what="--figure")
     check_dependencies(methods)
     earlier = _earlier_outputs(args.output, resume=args.resume, overwrite=args.overwrite)
-    params, execution = params_from_args(args)
-    _note_ignored_plan(args, execution)
+    params = params_from_args(args)
     root = find_data_root(data=args.data)
     layout = detect_layout(root, split=args.split)
     searched = args.ndisp if args.ndisp is not None else \

@@ -189,14 +189,14 @@ def match_folders(args: argparse.Namespace) -> int:
     pair, the memory, the output folder, another run holding it) is refused in one line.
     """
     out = _check_arguments(args)
-    params, execution = params_from_args(args)
+    params = params_from_args(args)
     min_disp = getattr(args, "min_disp", 0) or 0
     pairs, bad = checked_pairs(args.left, args.right)
     if bad and getattr(args, "strict", False):
         raise bad_pairs_error(bad)
     total = len(pairs) + len(bad)
     buckets = _buckets(args, pairs)
-    plan = plan_from_args(args, execution, buckets=buckets)
+    plan = plan_from_args(args, buckets=buckets)
     settings = {"command": "match", "version": __version__, "params": params.to_dict(),
                 "ndisp": args.ndisp, "min_disp": min_disp, "strip_rows": plan.strip_rows,
                 "strip_overlap": plan.strip_overlap,

@@ -206,8 +206,8 @@ def run_match(args: argparse.Namespace) -> int:
     calib = calibration(args)
     if isinstance(args.ndisp, int):  # the range is known: refused before anything runs
         _check_range_outputs(outputs, calib, args.min_disp, args.ndisp)
-    params, execution = params_from_args(args)
-    plan = guard_pair(args, params, plan_from_args(args, execution))
+    params = params_from_args(args)
+    plan = guard_pair(args, params, plan_from_args(args))
     plan = cluster_plan(args, plan)  # --workers / --scheduler: the tiles are tasks
     stereo = None
     if args.rectify is not None:

@@ -8,9 +8,8 @@ parses (numbers, ``true``, ``false``, ``null``), else as text. The result is val
 :func:`sswjax.config.check_params`. Every name in the help comes from the registry
 (:data:`sswjax.config.SLOTS`, :func:`sswjax.config.kinds`, :data:`sswjax.config.PRESETS`).
 
-Execution plan: ``--strip-rows``, ``--strip-overlap``, ``--disparity-chunk`` override what an
-old flat parameter file holds of them (:func:`sswjax.config.read_params_file`), and ``--tile``
-(which replaces a file's strips), into the :class:`sswjax.ExecutionPlan` of the run;
+Execution plan: ``--strip-rows``, ``--strip-overlap``, ``--disparity-chunk`` and ``--tile``,
+into the :class:`sswjax.ExecutionPlan` of the run;
 ``--workers N`` and ``--scheduler ADDR`` say where it runs (a Dask cluster,
 :mod:`sswjax.cli.distributed`).
 """
@@ -31,20 +30,20 @@ from sswjax.config import (
     check_params,
     default_params,
     kinds,
+    load_params,
     preset,
-    read_params_file,
 )
 from sswjax.config.fields import option_fields
-from sswjax.config.legacy import EXECUTION_DEFAULTS
 from sswjax.config.validate import check_value
 from sswjax.runtime.buckets import ShapeBuckets
 from sswjax.runtime.plan import ExecutionPlan, check_plan
 
 __all__ = ["PLAN_OPTIONS", "add_parameter_options", "add_plan_options", "apply_settings",
-           "chosen_execution", "params_from_args", "plan_from_args", "setting"]
+           "params_from_args", "plan_from_args", "setting"]
 
-PLAN_OPTIONS = {name: "--" + name.replace("_", "-") for name in EXECUTION_DEFAULTS}
-"""Execution option -> its command-line option (``strip_rows`` -> ``--strip-rows``)."""
+PLAN_OPTIONS = {name: "--" + name.replace("_", "-")
+                for name in ("strip_rows", "strip_overlap", "disparity_chunk", "tile")}
+"""Execution plan field -> its command-line option (``strip_rows`` -> ``--strip-rows``)."""
 
 _OFF = ("none", "null")
 
@@ -168,7 +167,7 @@ def apply_settings(params: Params, settings: Sequence[tuple[str, object]]) -> Pa
         typed = getattr(item, "text", None)  # what the user typed, from the command line
         where = f"--set {typed}" if typed is not None else \
             f"--set {path}={json.dumps(value) if not isinstance(value, str) else value}"
-        if path in EXECUTION_DEFAULTS:
+        if path in PLAN_OPTIONS:
             raise ConfigError(path, f"{where}: {path} is how a call runs, not a parameter: "
                               f"use {PLAN_OPTIONS[path]} of sswjax match")
         if path not in SLOTS and "." not in path:
@@ -199,37 +198,16 @@ def _applied(params: Params, path: str, value) -> Params:
     return params
 
 
-def params_from_args(args: argparse.Namespace) -> tuple[Params, dict]:
-    """The parameters a command asked for and the execution options of its file.
-
-    ``--params FILE`` (:func:`sswjax.config.read_params_file`, what it leaves out from
-    ``--preset NAME`` or the default preset; old flat files may hold ``strip_rows``,
-    ``strip_overlap``, ``disparity_chunk``), else ``--preset NAME``, else the default preset;
-    then the ``--set`` changes.
-
-    Returns
-    -------
-    (Params, dict execution option -> value)
-    """
+def params_from_args(args: argparse.Namespace) -> Params:
+    """The parameters a command asked for: ``--params FILE`` (:func:`sswjax.config.load_params`,
+    what it leaves out from ``--preset NAME`` or the default preset), else ``--preset NAME``,
+    else the default preset; then the ``--set`` changes."""
     if getattr(args, "params", None) is not None:
-        params, execution = read_params_file(args.params, base=getattr(args, "preset", None))
+        params = load_params(args.params, base=getattr(args, "preset", None))
     else:
         name = getattr(args, "preset", None)
-        params, execution = (default_params() if name is None else preset(name)), {}
-    return apply_settings(params, getattr(args, "settings", [])), dict(execution)
-
-
-def chosen_execution(execution: Mapping) -> dict:
-    """The execution options of a file that differ from their defaults (a full dump of the old
-    flat names lists all of them).
-
-    Examples
-    --------
-    >>> chosen_execution({"strip_rows": 64, "strip_overlap": 32})
-    {'strip_rows': 64}
-    """
-    return {name: value for name, value in execution.items()
-            if value != EXECUTION_DEFAULTS[name]}
+        params = default_params() if name is None else preset(name)
+    return apply_settings(params, getattr(args, "settings", []))
 
 
 def _count(text: str) -> int:
@@ -291,35 +269,22 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                             "inputs and outputs on storage its workers share")
 
 
-def plan_from_args(args: argparse.Namespace, execution: Mapping, *,
+def plan_from_args(args: argparse.Namespace, *,
                    buckets: ShapeBuckets | None = None) -> ExecutionPlan:
-    """The execution plan of a run: the file's execution options, overridden by the plan
-    options given on the command line, with ``buckets``.
-
-    Raises ``ValueError`` (one line) for a file value that is not an integer >= 0.
+    """The execution plan of a run: the plan options given on the command line, with
+    ``buckets``; ``--tile`` and ``--strip-rows`` together are refused in one line.
 
     Examples
     --------
     >>> args = argparse.Namespace(strip_rows=64, strip_overlap=None, disparity_chunk=None)
-    >>> plan_from_args(args, {"strip_rows": 128, "strip_overlap": 16})[:2]
-    (64, 16)
+    >>> plan_from_args(args)[:2]
+    (64, 96)
     """
-    values = {}
-    for name, value in execution.items():
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            source = getattr(args, "params", None) or "the parameters"
-            raise ValueError(f"{source}: {name} must be an integer >= 0, got {value!r}")
-        values[name] = value
-    for name in EXECUTION_DEFAULTS:
-        given = getattr(args, name, None)
-        if given is not None:
-            values[name] = given
-    tile = getattr(args, "tile", None)
-    if tile:
-        if getattr(args, "strip_rows", None):
-            raise ValueError(f"--tile {tile} and --strip-rows {args.strip_rows} both cut the "
-                             "pair: give one")
-        values.update(tile=tile, strip_rows=0)  # the command line's tiles replace a file's strips
+    values = {name: getattr(args, name) for name in PLAN_OPTIONS
+              if getattr(args, name, None) is not None}
+    if values.get("tile") and values.get("strip_rows"):
+        raise ValueError(f"--tile {values['tile']} and --strip-rows {values['strip_rows']} both "
+                         "cut the pair: give one")
     if getattr(args, "no_carry_paths", False):
         values["carry_paths"] = False
     return check_plan(ExecutionPlan(**values, buckets=buckets))

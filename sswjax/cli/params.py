@@ -7,6 +7,8 @@ prints every stage (slot) in pipeline order with its kinds (the registered part 
 each kind's options: static or traced, the values allowed, the default and what it does. All
 of it is read from the registry and the options' declarations (:mod:`sswjax.config.parts`,
 :mod:`sswjax.config.fields`), so a part registered at run time is listed like the others.
+``sswjax params --upgrade OLD.json [-o NEW.json [--overwrite]]`` converts a file of the old flat
+names (:mod:`sswjax.cli.upgrade`) into the nested form; what it leaves out is noted on stderr.
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ import sys
 from pathlib import Path
 
 from sswjax.cli.common import check_outputs
-from sswjax.cli.options import (PLAN_OPTIONS, add_parameter_options, chosen_execution,
-                                params_from_args)
-from sswjax.config import DEFAULT_PRESET, SLOTS, Params, default_params, kinds, save_params
+from sswjax.cli.options import add_parameter_options, params_from_args
+from sswjax.cli.upgrade import upgrade_file
+from sswjax._files import atomic_output
+from sswjax.config import DEFAULT_PRESET, SLOTS, Params, default_params, kinds
 from sswjax.config.fields import default_of, option_fields
 from sswjax.config.serialize import FORMAT
 
@@ -34,10 +37,16 @@ def add_params_command(commands) -> None:
     parser.add_argument("--list", action="store_true",
                         help="list every stage in pipeline order, the kinds that can fill it "
                              "and each kind's options (static or traced, values, default)")
+    parser.add_argument("--upgrade", type=Path, metavar="OLD",
+                        help="convert OLD, a parameter file of the old flat names "
+                             "({\"static\": ..., \"dynamic\": ...}), into the nested form; "
+                             "what the nested form leaves out is noted on stderr")
     add_parameter_options(parser, "the")
     parser.add_argument("-o", "--output", type=Path, metavar="FILE",
                         help="write the JSON to FILE (atomically) instead of printing it; "
                              "'-o -' prints it")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="with --upgrade: replace an existing -o FILE")
     parser.set_defaults(run=run_params)
 
 
@@ -103,29 +112,48 @@ def document(params: Params, provenance: dict | None = None) -> dict:
     return data
 
 
+def _write(document: dict, output: Path | None) -> None:
+    """Print ``document`` (``output`` None) or write it to ``output`` atomically."""
+    if output is None:
+        print(json.dumps(document, indent=2))
+        return
+    with atomic_output(output) as tmp:
+        Path(tmp).write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {output}")
+
+
+def _upgrade(args: argparse.Namespace, output: Path | None) -> int:
+    """``sswjax params --upgrade OLD [-o NEW]``."""
+    given = [option for option, value in (("--preset", args.preset), ("--params", args.params),
+                                          ("--set", args.settings)) if value]
+    if given:
+        raise ValueError(f"--upgrade converts a file as it is: it takes no {given[0]}")
+    check_outputs({"-o": output}, {"--upgrade": args.upgrade})
+    if output is not None and output.exists() and not args.overwrite:
+        raise ValueError(f"-o {output} exists: give --overwrite to replace it")
+    document, notes = upgrade_file(args.upgrade)
+    for note in notes:
+        print(f"sswjax: note: {args.upgrade}: {note}", file=sys.stderr)
+    _write(document, output)
+    return 0
+
+
 def run_params(args: argparse.Namespace) -> int:
     """``sswjax params``; returns the exit status (0)."""
     if args.list:
         given = [option for option, value in (("--preset", args.preset), ("--params", args.params),
-                                              ("--set", args.settings), ("-o", args.output))
-                 if value]
+                                              ("--set", args.settings), ("-o", args.output),
+                                              ("--upgrade", args.upgrade)) if value]
         if given:
             raise ValueError(f"--list prints the catalogue of stages: it takes no {given[0]}")
         print(catalogue())
         return 0
     output = None if args.output == Path("-") else args.output
+    if args.upgrade is not None:
+        return _upgrade(args, output)
+    if args.overwrite:
+        raise ValueError("--overwrite goes with --upgrade (sswjax params -o replaces its file)")
     check_outputs({"-o": output}, {"--params": args.params})
-    params, execution = params_from_args(args)
-    execution = chosen_execution(execution)
-    if execution:
-        listed = ", ".join(f"{name}={value!r}" for name, value in execution.items())
-        options = " ".join(f"{PLAN_OPTIONS[name]} {value}" for name, value in execution.items())
-        print(f"sswjax: note: {listed} in {args.params} is how a call runs, not a parameter: "
-              f"left out; pass {options} to sswjax match", file=sys.stderr)
-    provenance = _provenance(args)
-    if output is None:
-        print(json.dumps(document(params, provenance), indent=2))
-        return 0
-    save_params(output, params, provenance=provenance)
-    print(f"wrote {output}")
+    params = params_from_args(args)
+    _write(document(params, _provenance(args)), output)
     return 0

@@ -135,7 +135,7 @@ def _check_run_dir(run_dir: Path, resume: bool, recorded: dict) -> None:
 
 def run_search_command(args: argparse.Namespace) -> int:
     """Run ``sswjax search``; return the exit status."""
-    base, _ = params_from_args(args)
+    base = params_from_args(args)
     if base.coarse is not None:
         raise ValueError("the search runs the full-resolution volume; a preset with a coarse "
                          "pass (coarse is set) cannot be searched: start from accurate, paper "

@@ -25,7 +25,7 @@ import numpy as np
 
 from sswjax.config import SLOTS, ConfigError, Params, check_params, kinds
 from sswjax.config.fields import check_value, option_fields
-from sswjax.config.serialize import FORMAT
+from sswjax.config.serialize import FORMAT, flat_key
 
 __all__ = ["EXECUTION_NAMES", "FLAT_DEFAULTS", "OLD_NAMES", "upgrade", "upgrade_file"]
 
@@ -286,10 +286,8 @@ def upgrade_file(path: Path) -> tuple[dict, list[str]]:
         raise ValueError(f"parameter file not found: {path}") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"cannot read parameter file {path}: {error}") from None
-    if isinstance(data, Mapping) and ("format" in data or any(
-            key in SLOTS and (value is None or isinstance(value, Mapping))
-            for key, value in data.items())):
-        raise ValueError(f"{path} is already in the per-stage form: nothing to upgrade")
+    if isinstance(data, Mapping) and flat_key(data) is None:
+        raise ValueError(f"{path} is not a file of the old flat names: nothing to upgrade")
     try:
         params, notes = upgrade(data)
     except ConfigError as error:

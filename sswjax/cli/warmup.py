@@ -101,9 +101,9 @@ def run_warmup(args: argparse.Namespace) -> int:
     if args.ndisp < 1:
         raise ValueError(f"--ndisp must be >= 1, got {args.ndisp}")
     shapes = _shapes(args)
-    params, execution = params_from_args(args)
+    params = params_from_args(args)
     buckets = ShapeBuckets() if args.bucket else None
-    asked = plan_from_args(args, execution, buckets=buckets)
+    asked = plan_from_args(args, buckets=buckets)
     plans = [guard_memory([shape], args.ndisp, params=params, plan=asked,
                           limit_gb=args.max_memory, min_disp=args.min_disp) for shape in shapes]
     total = time.perf_counter()

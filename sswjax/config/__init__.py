@@ -35,7 +35,7 @@ from sswjax.config.parts import SLOTS, Part, kinds, register
 from sswjax.config.presets import DEFAULT_PRESET, PRESETS, default_params, preset
 from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
 from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
-from sswjax.config.serialize import load_params, params_from_dict, read_params_file, save_params
+from sswjax.config.serialize import load_params, params_from_dict, save_params
 from sswjax.config.validate import check_params
 
 __all__ = [
@@ -46,5 +46,5 @@ __all__ = [
     "PlaneFill", "Preprocessor", "SLOTS", "SemiGlobal", "SideWindowAggregation",
     "SideWindowMedian", "Slic", "VerticalAlignment", "VoteFill", "WeightedMedianFill", "WinnerTakesAll",
     "check_params", "default_params", "kinds", "load_params", "option", "params_from_dict",
-    "preset", "read_params_file", "register", "save_params", "stage_config",
+    "preset", "register", "save_params", "stage_config",
 ]

@@ -53,7 +53,7 @@ class SideWindowAggregation(Aggregator):
     window_selection: str = option("slice", static=True, choices=WINDOW_SELECTIONS,
                                    help="'slice': each slice picks its windows (Yin et al. "
                                         "2019); 'guide': the left image picks them for all")
-    segment_weight: float = option(0.5996789336204529, low=0, search=Softplus(0.0),
+    segment_weight: float = option(0.59967893, low=0, search=Softplus(0.0),
                                    help="lambda: the filter sees C + lambda S (Eq. 7 as we read "
                                         "it); with segments only")
 

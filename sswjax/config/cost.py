@@ -54,15 +54,15 @@ class MatchingCost(Part):
                                 help="census window height (Eq. 4)")
     census_width: int = option(9, static=True, low=1, high=15, odd=True,
                                help="census window width (Eq. 4)")
-    tad_weight: float = option(0.05000000074505806, low=0, search=Simplex("weight_logits"),
+    tad_weight: float = option(0.05, low=0, search=Simplex("weight_logits"),
                                help="alpha of Eq. 5: weight of the truncated colour difference")
-    gradient_weight: float = option(0.15000000596046448, low=0, search=Simplex("weight_logits"),
+    gradient_weight: float = option(0.15, low=0, search=Simplex("weight_logits"),
                                     help="beta of Eq. 5: weight of the gradient difference")
-    census_weight: float = option(0.800000011920929, low=0, search=Simplex("weight_logits"),
+    census_weight: float = option(0.8, low=0, search=Simplex("weight_logits"),
                                   help="gamma of Eq. 5: weight of the census Hamming distance")
-    tad_truncation: float = option(0.04221818596124649, above=0, search=Sigmoid(0.002, 0.3),
+    tad_truncation: float = option(0.042218186, above=0, search=Sigmoid(0.002, 0.3),
                                    help="tau of Eq. 2 on the channel-mean absolute difference")
-    gradient_truncation: float = option(0.015484430827200413, above=0,
+    gradient_truncation: float = option(0.015484431, above=0,
                                         search=Sigmoid(0.005, 1.0),
                                         help="truncation of the gradient-magnitude difference "
                                              "(Eq. 3)")

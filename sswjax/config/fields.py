@@ -211,12 +211,14 @@ def default_of(cls, name: str):
 
 
 def is_set(config, name: str) -> bool:
-    """Whether option ``name`` of ``config`` differs from its default (a traced value, whose
-    value is unknown, counts as not set): how a rule tells an option someone chose from one
-    left alone."""
+    """Whether option ``name`` of ``config`` differs from its default (a traced option in
+    float32, the graph's dtype; a traced value, whose value is unknown, counts as not set): how
+    a rule tells an option someone chose from one left alone."""
     value = getattr(config, name)
     if isinstance(value, jax.core.Tracer):
         return False
+    if not dict(option_fields(config))[name].static:  # as the graph sees it: float32
+        return bool(np.float32(value) != np.float32(default_of(config, name)))
     return value != default_of(config, name)
 
 

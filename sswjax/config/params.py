@@ -22,8 +22,6 @@ from sswjax.config.band import DisparityBand
 from sswjax.config.cost import MatchingCost, Preprocessor, Slic
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
-from sswjax.config.legacy import (EXECUTION_DEFAULTS, NEWER_OPTIONS, NEWER_SLOTS, from_flat,
-                                  old_names, to_flat, translate, unused_error)
 from sswjax.config.optimizer import Optimizer
 from sswjax.config.parts import SLOTS, kinds
 from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
@@ -71,31 +69,44 @@ class Params:
         return ((name, getattr(self, name)) for name in SLOTS)
 
     def replace(self, **changes) -> Params:
-        """A copy with some stages or options changed.
+        """A copy with some stages or options changed, applied in the order given.
 
         Keys are
-        * a slot (``fill``): a configuration instance, ``None`` (the stage off), or a mapping of
-          options for the slot's current part (with ``"kind"``: a new part with those options);
-        * a dotted option (``"optimizer.p2"``, passed as ``**{"optimizer.p2": 1.2}``);
-        * an old flat name (``census_weight``, ``fill_radius``; a slot given a string, such as
-          ``fill="vote"``, is the old switch): read as :mod:`sswjax.config.legacy` reads them,
-          keeping the options the old names shared.
+        * a slot (``fill``) given a configuration instance, or ``None`` (the stage off);
+        * a slot given a kind's name (``fill="vote"``) or a mapping of options, with or without
+          ``"kind"`` (``fill={"kind": "vote", "step": 2}``, ``fill={"step": 2}``): a name is
+          the mapping ``{"kind": name}``, and both follow one rule: the slot's current kind
+          (or no kind named) changes the options given of the current configuration; another
+          kind starts from that kind's defaults;
+        * a dotted option (``"optimizer.p2"``, passed as ``**{"optimizer.p2": 1.2}``).
 
         Values are not validated here (:func:`sswjax.config.validate.check_params` does);
-        unknown names, kinds and options are refused with a one-line ``ConfigError``.
+        unknown stages, kinds and options are refused with a one-line ``ConfigError``. Files of
+        the old flat names (``fill_radius``, ``sgm_p2``) convert with ``sswjax params --upgrade``.
+
+        Examples
+        --------
+        >>> from sswjax.config import preset
+        >>> finest = preset("finest")
+        >>> finest.replace(fill="vote") == finest.replace(fill={"kind": "vote"})
+        True
+        >>> finest.replace(fill="vote").fill.band_fit     # another kind: its defaults
+        0
+        >>> finest.replace(fill="wmedian") == finest      # the same kind: kept as it is
+        True
+        >>> p = Params().replace(aggregation={"kind": "gf", "radius": 5}).replace(fill="vote")
+        >>> p.aggregation.radius, p.fill.kind
+        (5, 'vote')
         """
-        flat = {key: value for key, value in changes.items()
-                if key in old_names() and not (key in SLOTS and not isinstance(value, str))}
-        result = _replace_flat(self, flat) if flat else self
+        result = self
         for key, value in changes.items():
-            if key in flat:
-                continue
             if key in SLOTS:
                 result = dataclasses.replace(result, **{key: _slot_value(result, key, value)})
             elif "." in key:
                 result = _set_option(result, key, value)
             else:
-                raise ConfigError(key, f"unknown parameter {key!r}")
+                raise ConfigError(key, f"unknown parameter {key!r}: name a stage "
+                                  f"({', '.join(SLOTS)}) or \"stage.option\"")
         return result
 
     def to_dict(self) -> dict:
@@ -114,34 +125,14 @@ class Params:
         return out
 
 
-def _replace_flat(params: Params, flat: Mapping) -> Params:
-    """``params`` with old flat names changed, as the flat code changed them."""
-    execution = sorted(set(flat) & set(EXECUTION_DEFAULTS))
-    if execution:
-        raise ConfigError(execution[0], f"{execution[0]} is how a call runs, not a parameter: "
-                          f"pass plan=sswjax.ExecutionPlan({execution[0]}=...) to sswjax.match")
-    try:
-        slots = dict(params.stages())
-        newer = {slot: slots.pop(slot) for slot in NEWER_SLOTS}
-        reading = from_flat({**to_flat(slots), **flat}, explicit=flat)
-    except ConfigError as error:
-        raise translate(error) from None
-    if reading.unused:
-        raise unused_error(reading.unused)
-    slots = {**reading.slots, **newer}
-    for slot, field in NEWER_OPTIONS:  # kept where the stage kept its kind
-        before, after = getattr(params, slot), slots[slot]
-        if before is not None and after is not None and before.kind == after.kind:
-            slots[slot] = after.replace(**{field: getattr(before, field)})
-    return Params(**slots)
-
-
 def _slot_value(params: Params, slot: str, value):
     """What ``replace(slot=value)`` puts in the slot (a configuration or None)."""
     if value is None:
         if not SLOTS[slot].optional:
             raise ConfigError(slot, f"stage {slot} cannot be None")
         return None
+    if isinstance(value, str):
+        value = {"kind": value}
     if isinstance(value, Mapping):
         current = getattr(params, slot)
         kind = value.get("kind", None if current is None else current.kind)

@@ -61,21 +61,17 @@ def test_replace_refuses_unknown_names_kinds_and_options():
         Params().replace(fill=SemiGlobal())
 
 
-def test_replace_takes_the_old_flat_names():
-    p = Params().replace(census_weight=0.5, aggregation_radius=6, lr_check=False)
-    assert p.cost.census_weight == 0.5 and p.aggregation.radius == 6
-    assert p.checks is None and p.fill is None
-    # a slot given a string is the old switch: the options the old names shared are kept
-    fast = preset("fast")
-    vote = fast.replace(fill="vote")
-    assert vote.fill == VoteFill(median_radius=3, median="separable", band_fit=15)
-    assert Params().replace(optimizer="sgm", sgm_p2=1.0).optimizer == SemiGlobal(p2=1.0)
-    assert Params().replace(n_segments=0).segments is None
-    # an option of a stage the parameters do not use is refused (it used to be ignored)
-    with pytest.raises(ConfigError, match="fill_band_fit acts only with fill 'left-band'"):
-        Params().replace(fill_band_fit=15)
-    with pytest.raises(ConfigError, match="strip_rows is how a call runs"):
-        Params().replace(strip_rows=64)
+def test_a_kind_by_name_or_by_mapping_is_one_rule():
+    finest = preset("finest")
+    assert finest.replace(fill="vote") == finest.replace(fill={"kind": "vote"}) \
+        == finest.replace(fill=VoteFill())  # another kind: its defaults
+    assert finest.replace(fill="wmedian") == finest.replace(fill={"kind": "wmedian"}) == finest
+    assert preset("fast").replace(fill={"median_radius": 5}).fill.band_fit == 15  # kept
+    gf = Params().replace(aggregation={"kind": "gf", "radius": 5}).replace(fill="vote")
+    assert gf.aggregation.radius == 5 and gf.fill == VoteFill()
+    for old in ("census_weight", "fill_radius", "strip_rows"):
+        with pytest.raises(ConfigError, match=f"unknown parameter '{old}': name a stage"):
+            Params().replace(**{old: 1})
 
 
 def test_to_dict_is_nested_per_stage():

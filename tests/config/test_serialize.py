@@ -1,4 +1,4 @@
-"""Tests for sswjax.config.serialize: nested JSON, partial files, the old flat files."""
+"""Tests for sswjax.config.serialize: nested JSON, partial files, the old flat files refused."""
 
 import json
 import warnings
@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from sswjax import Params, load_params, preset, save_params
-from sswjax.config import PRESETS, VoteFill, params_from_dict, read_params_file
+from sswjax.config import PRESETS, VoteFill, params_from_dict
 
 ROOT = Path(__file__).parents[2]
 
@@ -39,9 +39,11 @@ def test_a_partial_file_starts_from_its_preset():
 
 
 @pytest.mark.parametrize("data, message", [
-    ({"bogus": 1}, "unknown parameter 'bogus'"),
+    ({"bogus": {}}, "unknown parameter 'bogus'"),
+    ({"bogus": 1}, "old flat names ('bogus')"),
     ({"fill": {"kind": "vote", "typo": 1}}, "fill 'vote' has no option 'typo'"),
-    ({"fill": "vote", "optimizer": {"kind": "sgm"}}, "mix the flat name 'fill'"),
+    ({"fill": "vote", "optimizer": {"kind": "sgm"}}, "in the old flat names ('fill'): convert "
+                                                     "the file with sswjax params --upgrade"),
     ({"format": "sswjax-params/9"}, "unknown parameter format"),
     ({"preset": "nope"}, "unknown preset 'nope'"),
     ({"optimizer": [1]}, "stage optimizer must be null or an object"),
@@ -54,32 +56,20 @@ def test_bad_nested_files(data, message):
         params_from_dict(data)
 
 
-def test_the_flat_forms_still_load():
-    nested = params_from_dict({"static": {"fill_radius": 3}, "dynamic": {"gradient_weight": 0.2},
-                               "comment": "x"})
-    flat = params_from_dict({"fill_radius": 3, "gradient_weight": 0.2})
-    assert nested == flat == Params().replace(fill_radius=3, gradient_weight=0.2)
-    with pytest.warns(UserWarning, match="segment_weight acts only with aggregation 'ssw' and "
-                      "superpixels"):
-        zero = params_from_dict({"tad_weight": 0, "segment_weight": 0.0, "lr_tolerance": 0,
-                                 "n_segments": 0})
-    assert zero.segments is None and zero.cost.tad_weight == 0.0
-    assert isinstance(zero.cost.tad_weight, float)
-
-
 @pytest.mark.parametrize("data", [
-    {"static": {"census_weight": 0.5}}, {"dynamic": {"typo_radius": 2}}, {"aggregation_radius": 2.5},
-    {"aggregation_radius": True}, {"aggregation_radius": "3"}, {"aggregation_radius": 0},
-    {"census_height": 8}, {"census_width": 17}, {"lr_check": "yes"}, {"subpixel": 1},
-    {"window_selection": "box"}, {"census_weight": "0.5"}, {"census_weight": True},
-    {"census_weight": None}, {"tad_truncation": float("nan")}, {"tad_truncation": float("inf")},
-    {"tad_truncation": -0.1}, {"tad_truncation": 0}, {"gradient_truncation": 0.0},
-    {"slic_compactness": 0.0}, {"census_weight": -1.0}, {"lr_tolerance": float("nan")},
+    {"static": {"fill_radius": 3}}, {"dynamic": {"gradient_weight": 0.2}}, {"fill_radius": 3},
+    {"fill": "vote"}, {"sgm_p2": 1.0, "provenance": {}},
 ])
-def test_bad_flat_values_are_named_by_their_old_names(data):
-    name = next(iter(data)) if "static" not in data and "dynamic" not in data else None
-    with pytest.raises(ValueError, match=name or "parameter"):
+def test_the_flat_forms_are_refused_naming_the_converter(tmp_path, data):
+    with pytest.raises(ValueError, match=r"old flat names \('.*'\): convert the file with sswjax "
+                                         "params --upgrade OLD.json -o NEW.json"):
         params_from_dict(data)
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=r"old.json: parameters in the old flat names \('.*'\): "
+                                         "convert the file with sswjax params --upgrade") as error:
+        load_params(path)
+    assert "\n" not in str(error.value)
 
 
 def _stored_parameter_files():
@@ -92,27 +82,9 @@ def test_every_stored_parameter_file_loads():
     assert len(files) >= 10
     for path in files:
         with warnings.catch_warnings():
-            warnings.simplefilter("error")  # no ignored option in them either
-            params, execution = read_params_file(path)
-        assert isinstance(params, Params) and set(execution) <= {"strip_rows", "strip_overlap",
-                                                                 "disparity_chunk"}
+            warnings.simplefilter("error")
+            assert isinstance(load_params(path), Params)
     assert load_params(ROOT / "tuning" / "params" / "tuned.json") == Params()
-
-
-def test_execution_options_of_old_files_come_back_apart(tmp_path):
-    path = tmp_path / "old.json"
-    path.write_text('{"static": {"strip_rows": 64, "n_segments": 8}}')
-    params, execution = read_params_file(path)
-    assert execution == {"strip_rows": 64} and params.segments.n_segments == 8
-    with pytest.warns(UserWarning, match="strip_rows=64 in the parameters is how a call runs"):
-        load_params(path)
-
-
-def test_an_ignored_old_option_is_a_warning_not_an_error(tmp_path):
-    path = tmp_path / "old.json"
-    path.write_text('{"fill": "wmedian", "fill_radius": 9}')
-    with pytest.warns(UserWarning, match="fill_radius acts only with fill"):
-        assert load_params(path).fill.kind == "wmedian"
 
 
 def test_load_params_errors(tmp_path):
@@ -120,8 +92,8 @@ def test_load_params_errors(tmp_path):
         load_params(tmp_path / "missing.json")
     for name, text, message in [
         ("bad.json", "{not json", "bad.json"),
-        ("nan.json", '{"dynamic": {"tad_truncation": NaN}}', "tad_truncation"),
-        ("type.json", '{"static": {"lr_check": "yes"}}', "lr_check"),
+        ("nan.json", '{"cost": {"tad_truncation": NaN}}', "tad_truncation"),
+        ("type.json", '{"selection": {"subpixel": "yes"}}', "subpixel"),
         ("list.json", "[1, 2]", "JSON object"),
         ("deep.json", "[" * 100_000 + "]" * 100_000, "nested too deeply"),
     ]:
