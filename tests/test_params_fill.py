@@ -150,4 +150,3 @@ def test_old_flat_files_are_refused_naming_the_converter(tmp_path, run_cli):
     new = tmp_path / "new.json"
     assert run_cli(["params", "--upgrade", path, "-o", new])[0] == 0
     assert load_params(new) == Params().replace(**{"fill.median_radius": 3})  # the paper's
-
