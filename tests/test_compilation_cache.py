@@ -8,6 +8,8 @@ import subprocess
 import sys
 import zlib
 
+import jax
+
 from sswjax.runtime.compilation import damaged_entries
 
 
@@ -45,20 +47,27 @@ def test_a_damaged_cache_entry_is_replaced(small_pair, tmp_path):
     assert (tmp_path / "third.pfm").read_bytes() == (tmp_path / "first.pfm").read_bytes()
 
 
-def test_entries_stored_before_the_bound_do_not_stop_new_ones(small_pair, tmp_path):
-    # sswjax before 2026-12-04 kept the cache unbounded: its entries have no access-time file,
-    # and JAX's bounded cache reads one for every entry before it stores a new entry (it failed
-    # with a warning, and nothing new was stored while such an entry stayed).
-    cache = tmp_path / "cache"
-    first = _match(small_pair, tmp_path, cache, "first")
-    assert first.returncode == 0, first.stderr
-    for atime in cache.glob("*-atime"):
-        atime.unlink()
-    (old,) = cache.glob("*-cache")
-    second = _match(small_pair, tmp_path, cache, "second", ndisp=12)  # a new graph to store
-    assert second.returncode == 0, second.stderr
-    assert "Error writing" not in second.stderr and "Warning" not in second.stderr, second.stderr
-    entries = sorted(cache.glob("*-cache"))
-    assert len(entries) == 2 and old in entries
-    assert sorted(p.name.removesuffix("-atime") for p in cache.glob("*-atime")) == sorted(
-        p.name.removesuffix("-cache") for p in entries)
+def test_the_command_line_in_process_leaves_jax_cache_options_as_they_were(small_pair, tmp_path,
+                                                                          tiny, monkeypatch):
+    """``main`` called in a process that goes on (a test, a notebook) turns the cache on for its
+    command only: the graphs are stored in ``$SSWJAX_CACHE_DIR`` during the command, and JAX's
+    options are the process's own again when it returns, so what later code compiles does not
+    depend on whether a command line ran before it."""
+    from sswjax.cli import main
+
+    names = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
+             "jax_persistent_cache_min_entry_size_bytes", "jax_compilation_cache_max_size")
+    before = {name: getattr(jax.config, name) for name in names}
+    mine = str(tmp_path / "mine")
+    jax.config.update("jax_compilation_cache_dir", mine)  # the process's own setting
+    try:
+        monkeypatch.setenv("SSWJAX_CACHE_DIR", str(tmp_path / "cli"))
+        narrow = small_pair.folder / "narrow.png"  # a size of its own: compiled here
+        assert main(["--quiet", "match", str(narrow), str(narrow), "--ndisp", "5", *tiny.args,
+                     "-o", str(tmp_path / "d.pfm")]) == 0
+        assert list((tmp_path / "cli" / "graphs").iterdir())
+        assert jax.config.jax_compilation_cache_dir == mine
+        assert {name: getattr(jax.config, name) for name in names[1:]} == {
+            name: before[name] for name in names[1:]}
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before["jax_compilation_cache_dir"])

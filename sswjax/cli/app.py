@@ -26,7 +26,8 @@ import sys
 from sswjax._files import first_line
 from sswjax.cli.common import (EXIT_INTERRUPTED, EXIT_USAGE, Interrupted, Parser,
                                remembered_interrupts)
-from sswjax.runtime.compilation import enable_compilation_cache, repairing_cache
+from sswjax.runtime.compilation import (cache_settings_restored, enable_compilation_cache,
+                                        repairing_cache)
 from sswjax.runtime.memory import MemoryEstimateError
 
 __all__ = ["COMMANDS", "EXIT_BROKEN_PIPE", "USER_ERRORS", "build_parser", "commands_needed", "console", "main"]
@@ -86,7 +87,9 @@ def build_parser(commands: tuple[str, ...] = COMMANDS) -> argparse.ArgumentParse
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status (0, 2 for bad input, 130 on Ctrl-C, 141
-    when the reader of standard output went away).
+    when the reader of standard output went away). The persistent compilation cache is on
+    during the command (unless ``--no-cache``); JAX's cache options are as before when it
+    returns.
 
     Examples
     --------
@@ -97,7 +100,14 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(commands_needed(argv)).parse_args(argv)
     args.argv = argv
-    cache = None if args.no_cache else enable_compilation_cache()
+    with cache_settings_restored():  # a process that goes on (tests, notebooks) keeps its own
+        cache = None if args.no_cache else enable_compilation_cache()
+        return _run(args, cache)
+
+
+def _run(args: argparse.Namespace, cache) -> int:
+    """The parsed command, with the cache in ``cache`` (a folder, or ``None``: off) repaired
+    as it goes; its exit status (:func:`main`)."""
     try:
         with repairing_cache(cache), remembered_interrupts(), _compile_lines(not args.quiet):
             status = args.run(args)

@@ -16,11 +16,11 @@ import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
-import filelock
 import jax
+from jax.experimental.compilation_cache import compilation_cache
 
-__all__ = ["CACHE_BYTES", "default_cache_dir", "damaged_entries", "enable_compilation_cache",
-           "repairing_cache"]
+__all__ = ["CACHE_BYTES", "cache_settings_restored", "default_cache_dir", "damaged_entries",
+           "enable_compilation_cache", "repairing_cache"]
 
 _UNREADABLE = "Error reading persistent compilation cache entry"
 """The start of JAX's warning when an entry cannot be read."""
@@ -47,7 +47,8 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
     makes JAX lock the folder while it reads or writes an entry: processes sharing it (Dask
     workers, command lines run side by side) never read an entry another one is still writing. This
     sets process-wide JAX configuration, so it is called by entry points (the CLI, benchmarks,
-    workers), never by library functions. Returns the folder, or ``None`` when it cannot be
+    workers), never by library functions (the command line restores it when it returns:
+    :func:`cache_settings_restored`). Returns the folder, or ``None`` when it cannot be
     created (the cache is then left off: it is an optimisation, not a requirement).
     """
     folder = Path(path) if path is not None else default_cache_dir()
@@ -55,32 +56,38 @@ def enable_compilation_cache(*, path: str | os.PathLike | None = None) -> Path |
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:
         return None
-    jax.config.update("jax_compilation_cache_dir", str(folder))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    jax.config.update("jax_compilation_cache_max_size", CACHE_BYTES)
-    _date_unbounded_entries(folder)
+    _apply({"jax_compilation_cache_dir": str(folder),
+            "jax_persistent_cache_min_compile_time_secs": 0.5,
+            "jax_persistent_cache_min_entry_size_bytes": 0,
+            "jax_compilation_cache_max_size": CACHE_BYTES})
     return folder
 
 
-def _date_unbounded_entries(folder: Path) -> None:
-    """Give every entry of ``folder`` without an access-time file one, its modification time.
+_SETTINGS = ("jax_compilation_cache_dir", "jax_persistent_cache_min_compile_time_secs",
+             "jax_persistent_cache_min_entry_size_bytes", "jax_compilation_cache_max_size")
+"""The JAX options :func:`enable_compilation_cache` sets."""
 
-    JAX's bounded cache (``jax._src.lru_cache``: ``KEY-cache`` holds a program, ``KEY-atime`` its
-    last use, 8 bytes, nanoseconds, little-endian) reads the access time of every entry before it
-    stores a new one, and fails when one is missing: an entry stored while the cache was
-    unbounded (sswjax before 2026-12-04) would stop every new entry from being stored. Done
-    under JAX's own lock on the folder; a folder that cannot be written or locked is left as
-    it is (the cache is an optimisation).
-    """
+
+def _apply(settings: dict) -> None:
+    """Set these JAX options; where one changes, JAX opens its cache anew at the next
+    compilation (it reads them once: ``reset_cache`` of ``jax.experimental.compilation_cache``)."""
+    changed = {name: value for name, value in settings.items()
+               if getattr(jax.config, name) != value}
+    for name, value in changed.items():
+        jax.config.update(name, value)
+    if changed:
+        compilation_cache.reset_cache()
+
+
+@contextlib.contextmanager
+def cache_settings_restored() -> Iterator[None]:
+    """After the block, JAX's persistent-cache options (:data:`_SETTINGS`) are as they were
+    before it: a process that calls the command line's ``main`` goes on with its own."""
+    before = {name: getattr(jax.config, name) for name in _SETTINGS}
     try:
-        with filelock.FileLock(folder / ".lockfile", timeout=10):
-            for entry in folder.glob("*-cache"):
-                atime = entry.with_name(entry.name.removesuffix("-cache") + "-atime")
-                if not atime.exists():
-                    atime.write_bytes(entry.stat().st_mtime_ns.to_bytes(8, "little"))
-    except (OSError, filelock.Timeout):
-        return
+        yield
+    finally:
+        _apply(before)
 
 
 def _readable(data: bytes) -> bool:
