@@ -15,8 +15,9 @@ chunk, and over many sizes to fit the memory guard's model.
     recorded. The fit is non-negative least squares of the peaks on the terms of
     :func:`sswjax.runtime.memory.memory_terms`, weighted by 1 / peak (relative errors); the
     coefficients, with the margin that puts every estimate above its measurement, are printed
-    for ``sswjax/runtime/memory.py``. A configuration's changes are old flat parameter names
-    or execution-plan fields (``strip_rows``, ``disparity_chunk``). Writes
+    for ``sswjax/runtime/memory.py``. A configuration's changes are stages and dotted options
+    (``segments``, ``optimizer.dtype``) or execution-plan fields (``strip_rows``,
+    ``disparity_chunk``). Writes
     ``memory_model.{md,csv}``; ``--measured CSV`` refits earlier measurements.
 
     python benchmarks/memory.py [peaks] [--data DIR] [--presets paper accurate]
@@ -105,16 +106,16 @@ CONFIGS = [
     (480, 722, 190, "paper", {}),
     (497, 741, 70, "paper", {"disparity_chunk": 16}),
     (497, 741, 70, "paper", {"disparity_chunk": 0}),
-    (497, 741, 70, "paper", {"n_segments": 0}),
+    (497, 741, 70, "paper", {"segments": None}),
     (994, 1482, 140, "paper", {}),
     (994, 1482, 140, "paper", {"strip_rows": 128}),
     (497, 741, 70, "accurate", {}),
     (480, 722, 190, "accurate", {}),
     (497, 741, 140, "accurate", {}),
-    (497, 741, 70, "accurate", {"sgm_dtype": "int16"}),
-    (480, 722, 190, "accurate", {"sgm_dtype": "int16"}),
-    (994, 1482, 140, "accurate", {"sgm_dtype": "int16"}),
-    (497, 741, 70, "accurate", {"sgm_paths": 8}),
+    (497, 741, 70, "accurate", {"optimizer.dtype": "int16"}),
+    (480, 722, 190, "accurate", {"optimizer.dtype": "int16"}),
+    (994, 1482, 140, "accurate", {"optimizer.dtype": "int16"}),
+    (497, 741, 70, "accurate", {"optimizer.paths": 8}),
     (497, 741, 70, "accurate", {"disparity_chunk": 0}),
     (480, 722, 190, "accurate", {"strip_rows": 160}),
     (994, 1482, 140, "accurate", {"strip_rows": 64}),

@@ -13,7 +13,7 @@ from sswjax.api import batch
 from sswjax.api.batch import iter_match_scenes, match_batch, match_scenes
 from sswjax.runtime.buckets import bucket_shape
 
-PARAMS = sswjax.Params().replace(n_segments=16)
+PARAMS = sswjax.Params().replace(**{"segments.n_segments": 16})
 
 
 def _batch(size=3):
@@ -36,7 +36,7 @@ from sswjax.api.batch import match_batch
 rng = np.random.default_rng(11)
 rights = rng.random((3, 28, 48, 3), dtype=np.float32)
 lefts = np.stack([np.roll(r, 2 + i, axis=1) for i, r in enumerate(rights)])
-out = match_batch(lefts, rights, 10, params=sswjax.Params().replace(n_segments=16))
+out = match_batch(lefts, rights, 10, params=sswjax.Params().replace(**{"segments.n_segments": 16}))
 np.save({path!r}, out)
 print(len(jax.devices()))
 """
@@ -55,7 +55,7 @@ def test_two_devices_give_the_one_device_result(tmp_path, run_on_devices):
 # --- pairs of different sizes: grouped by bucket, one pair per device per call ---------------
 
 BUCKETS = sswjax.ShapeBuckets(size_step=32, ndisp_step=8)
-LIGHT = PARAMS.replace(slic_iterations=2, aggregation_iterations=1)  # quicker to compile
+LIGHT = PARAMS.replace(**{"segments.iterations": 2, "aggregation.iterations": 1})  # quicker to compile
 # (height, width, ndisp, shift): buckets 32x64x8 (three pairs, not a multiple of 2 devices) and
 # 32x96x16 (two pairs), interleaved so that grouping reorders them.
 SCENES = ((28, 48, 6, 2), (28, 70, 12, 5), (32, 50, 8, 3), (30, 80, 16, 7), (26, 60, 5, 1))

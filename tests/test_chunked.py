@@ -29,15 +29,16 @@ def pair():
 
 @pytest.mark.parametrize("chunk", [5, 4, 11])
 def test_chunked_winners_are_identical(pair, chunk):
-    base = Params().replace(subpixel=False, n_segments=24)
+    base = Params().replace(**{"selection.subpixel": False, "segments.n_segments": 24})
     whole = ssw_disparity(*pair, base, ndisp=NDISP, chunk=0)
     chunked = ssw_disparity(*pair, base, ndisp=NDISP, chunk=chunk)
     np.testing.assert_array_equal(np.asarray(whole), np.asarray(chunked))
 
 
-@pytest.mark.parametrize("changes", [{}, {"window_selection": "guide"}, {"aggregation": "gf"}])
+@pytest.mark.parametrize("changes", [{}, {"aggregation.window_selection": "guide"},
+                                     {"aggregation": "gf", "segments": None}])
 def test_chunked_subpixel_matches_to_rounding(pair, changes):
-    base = Params().replace(n_segments=24).replace(**changes)  # gf: no superpixels left
+    base = Params().replace(**{"segments.n_segments": 24}).replace(**changes)  # gf: no superpixels left
     whole = np.asarray(ssw_disparity(*pair, base, ndisp=NDISP, chunk=0))
     chunked = np.asarray(ssw_disparity(*pair, base, ndisp=NDISP, chunk=5))
     # Same winners; the parabola's inputs may differ in the last bit between XLA fusions.
@@ -47,7 +48,7 @@ def test_chunked_subpixel_matches_to_rounding(pair, changes):
 
 
 def test_chunked_under_vmap(pair):
-    params = Params().replace(n_segments=24)
+    params = Params().replace(**{"segments.n_segments": 24})
     lefts = jnp.stack([pair[0], pair[0][:, ::-1]])
     rights = jnp.stack([pair[1], pair[1][:, ::-1]])
     batched = jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=NDISP, chunk=5))(lefts, rights)
@@ -62,7 +63,7 @@ def test_optimized_volume_folds_in_chunks_like_the_whole_volume(chunk):
     rng = np.random.default_rng(7)
     right = rng.random((30, 50, 3), dtype=np.float32)
     left = np.roll(right, 4, axis=1)
-    params = sswjax.preset("accurate").replace(n_segments=20, alignment=None)
+    params = sswjax.preset("accurate").replace(**{"segments.n_segments": 20}, alignment=None)
     whole = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=0)
     blocks = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=chunk)
     np.testing.assert_allclose(np.asarray(blocks), np.asarray(whole), atol=1e-4, rtol=0)

@@ -66,7 +66,7 @@ def test_the_refit_is_the_stage_on_the_doubled_map():
 
 def test_two_levels_and_confidence_have_the_fine_shape():
     left, right = map(jnp.asarray, _shifted_pair(8))
-    params = sswjax.preset("fast").replace(coarse_levels=2)
+    params = sswjax.preset("fast").replace(**{"coarse.levels": 2})
     out = ssw_outputs(left, right, params, ndisp=NDISP)
     for array in out:
         assert array.shape == (H, W)

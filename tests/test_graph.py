@@ -42,7 +42,7 @@ def pair():
 @pytest.fixture(scope="module")
 def integer_params():
     # no sub-pixel fit: the recovered disparities must be exact integers
-    return Params().replace(subpixel=False)
+    return Params().replace(**{"selection.subpixel": False})
 
 
 def test_constant_shift_recovered_exactly_without_subpixel(pair, integer_params):
@@ -81,7 +81,7 @@ def test_cost_stored_as_built_equals_the_volume_quantised_after(pair, monkeypatc
     left, right = map(jnp.asarray, pair)
     # (without the alignment, whose first pass would quantise too and move the right image
     # by the offset its map gives)
-    params = sswjax.preset("accurate").replace(sgm_dtype="uint8", alignment=None)
+    params = sswjax.preset("accurate").replace(**{"optimizer.dtype": "uint8"}, alignment=None)
     run = jax.jit(lambda l, r, v: ssw_disparity(l, r, params, ndisp=NDISP, valid_ndisp=v))
     stored = [run(left, right, None), run(left, right, NDISP - 3)]
     monkeypatch.setattr(SemiGlobal, "storage", lambda self, cost_bound: None)
@@ -245,7 +245,8 @@ def test_ssw_disparity_rejects_bad_pairs():
 @pytest.mark.parametrize("chunk", [0, 4])
 def test_winners_of_the_aggregated_cost_are_the_integer_map(pair, chunk):
     left, right = (jnp.asarray(im[:32, :64]) for im in pair)
-    params = Params().replace(n_segments=24, subpixel=False, lr_check=False, refine_radius=0)
+    params = Params().replace(**{"segments.n_segments": 24, "selection.subpixel": False},
+                              checks=None, fill=None, refinement=None)
     cost = sswjax.aggregated_cost(left, right, params, ndisp=NDISP)
     assert cost.shape == (NDISP, 32, 64) and cost.dtype == jnp.float32
     whole = np.asarray(ssw_disparity(left, right, params, ndisp=NDISP, chunk=chunk))
@@ -272,9 +273,9 @@ def layered_pair(seed: int = 1):
 
 def test_uniqueness_test_only_adds_rejections():
     left, right, truth, occluded = (jnp.asarray(a) for a in layered_pair())
-    base = sswjax.preset("accurate").replace(uniqueness_gap=0, alignment=None)
+    base = sswjax.preset("accurate").replace(**{"checks.uniqueness_gap": 0}, alignment=None)
     off = sswjax.ssw_outputs(left, right, base, ndisp=NDISP)
-    on = sswjax.ssw_outputs(left, right, base.replace(uniqueness_gap=2), ndisp=NDISP)
+    on = sswjax.ssw_outputs(left, right, base.replace(**{"checks.uniqueness_gap": 2}), ndisp=NDISP)
     assert bool(jnp.all(on.lr_failed | ~off.lr_failed))  # a superset of the check's rejections
     added = np.asarray(on.lr_failed & ~off.lr_failed)
     assert added[np.asarray(occluded)].any()  # measured: 98.2 % -> 99.6 % of the band rejected
@@ -302,17 +303,16 @@ def test_right_view_of_a_stored_volume_is_its_argmin(chunk, limit, dtype):
 def test_aggregated_check_only_adds_rejections():
     left, right, _, _ = (jnp.asarray(a) for a in layered_pair())
     base = sswjax.preset("accurate").replace(alignment=None)
-    off = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=0), ndisp=NDISP)
+    off = sswjax.ssw_outputs(left, right, base.replace(**{"checks.aggregated_gap": 0}), ndisp=NDISP)
     # a gap of 2, the preset's: the parameters of the second map of
     # test_uniqueness_test_only_adds_rejections, compiled once (measured: 4 pixels added here)
-    on = sswjax.ssw_outputs(left, right, base.replace(aggregated_lr_gap=2), ndisp=NDISP)
+    on = sswjax.ssw_outputs(left, right, base.replace(**{"checks.aggregated_gap": 2}), ndisp=NDISP)
     assert bool(jnp.all(on.lr_failed | ~off.lr_failed))
     assert bool(jnp.any(on.lr_failed & ~off.lr_failed))
     # without an optimiser the winners' right view is the aggregated one: nothing to add, and
     # the option is refused
-    with pytest.raises(ConfigError, match="aggregated_lr_gap acts only with lr_check and an "
-                                          "optimizer"):
-        sswjax.preset("paper").replace(aggregated_lr_gap=1)
+    with pytest.raises(ConfigError, match="checks.aggregated_gap needs an optimizer"):
+        sswjax.check_params(sswjax.preset("paper").replace(**{"checks.aggregated_gap": 1}))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -439,7 +439,7 @@ def test_the_equiangular_fit_moves_the_same_winners_further_than_the_parabola():
     # its size ((c- - c+) / 2 over max(c-, c+) - c0, against (c- - c0) + (c+ - c0)): with the
     # checks and the median off, the graph's maps must show exactly that, pixel by pixel.
     left, right = shifted_pair(4)
-    base = Params().replace(lr_check=False, refine_radius=0)
+    base = Params().replace(checks=None, fill=None, refinement=None)
     maps = {fit: sswjax.match(left, right, ndisp=NDISP, params=base.replace(
         selection=base.selection.replace(fit=fit))) for fit in ("parabola", "equiangular")}
     parabola, equiangular = maps["parabola"], maps["equiangular"]

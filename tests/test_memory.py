@@ -54,7 +54,7 @@ def test_estimate_follows_the_parameters():
     paper = sswjax.Params()
     assert estimate_peak_bytes(497, 741, 70, params=paper, plan=ExecutionPlan(disparity_chunk=0)) > \
         estimate_peak_bytes(497, 741, 70, params=paper)
-    assert estimate_peak_bytes(497, 741, 70, params=paper.replace(n_segments=0)) < \
+    assert estimate_peak_bytes(497, 741, 70, params=paper.replace(segments=None)) < \
         estimate_peak_bytes(497, 741, 70, params=paper)
     # (the default preset's estimate at this size is its compile floor: the terms show on paper's)
     assert estimate_peak_bytes(497, 741, 70, params=paper,

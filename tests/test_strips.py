@@ -18,7 +18,7 @@ def pair(square_pair):
 def test_local_method_in_strips_equals_the_whole_image(pair):
     # Without superpixels and SGM every stage sees a few rows around a pixel (census, side
     # windows, medians): strips with a wide enough overlap reproduce the whole image exactly.
-    params = sswjax.preset("paper").replace(n_segments=0)
+    params = sswjax.preset("paper").replace(segments=None)
     whole = sswjax.match(*pair, 12, params=params)
     strips = sswjax.match(*pair, 12, params=params,
                           plan=ExecutionPlan(strip_rows=20, strip_overlap=24))
@@ -36,7 +36,7 @@ def test_sgm_in_strips_stays_close_to_the_whole_image(pair):
 
 
 def test_strips_with_buckets(pair):
-    params = sswjax.preset("paper").replace(n_segments=0)
+    params = sswjax.preset("paper").replace(segments=None)
     plan = ExecutionPlan(strip_rows=40, strip_overlap=24, buckets=sswjax.ShapeBuckets(32, 16))
     bucketed = sswjax.match(*pair, 12, params=params, plan=plan)
     # the buckets given beside the plan are the plan's buckets

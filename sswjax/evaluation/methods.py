@@ -93,8 +93,8 @@ PEERS: dict[str, Peer] = {
 def variant_changes(name: str) -> Mapping[str, Any]:
     """Parameter changes of the SSW method ``name`` (an aggregator kind or a variant).
 
-    An aggregator is the old switch ``{"aggregation": kind}``, which keeps the radius where the
-    new kind has one of its own meaning and drops superpixels nothing uses then.
+    An aggregator is ``{"aggregation": kind}``; :func:`make_method` also keeps the window's
+    radius where the new kind's means the same and drops superpixels nothing uses then.
 
     Raises ``KeyError`` for a name that is neither.
 
@@ -106,6 +106,17 @@ def variant_changes(name: str) -> Mapping[str, Any]:
     if name in kinds("aggregation"):
         return {} if name == "ssw" else {"aggregation": name}
     return VARIANTS[name].changes
+
+
+def _as_aggregator(variant: Params, base: Params) -> Params:
+    """``variant`` (``base`` with another aggregator) as the aggregator methods have always run:
+    box and bilateral windows of the radius of a base window of the same meaning (ssw, box, bf),
+    and no superpixels where no stage uses them."""
+    if variant.aggregation.kind in ("box", "bf") and base.aggregation.kind in ("ssw", "box", "bf"):
+        variant = variant.replace(**{"aggregation.radius": base.aggregation.radius})
+    users = [part for part in (variant.aggregation, variant.optimizer, variant.fill, variant.band)
+             if part is not None and getattr(part, "uses_segments", False)]
+    return variant if users else variant.replace(segments=None)
 
 
 def method_names() -> tuple[str, ...]:
@@ -203,6 +214,8 @@ def make_method(
     if name not in method_names():
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(method_names())}")
     variant = (default_params() if params is None else params).replace(**variant_changes(name))
+    if name in kinds("aggregation"):
+        variant = _as_aggregator(variant, default_params() if params is None else params)
     if estimate_range:
         if buckets is not None:
             raise ValueError("an estimated range is each pair's own: it cannot be batched in "

@@ -54,11 +54,11 @@ def test_cli_help_lists_every_method():
 
 
 # Every non-default part alone, and several together (the defaults run everywhere else).
-_PAPER = sswjax.Params().replace(n_segments=24)
+_PAPER = sswjax.Params().replace(**{"segments.n_segments": 24})
 STAGE_CASES = {
     **{f"fill-{kind}": _PAPER.replace(fill=kind) for kind in kinds("fill") if kind != "background"},
     **{f"optimizer-{kind}": _PAPER.replace(optimizer=kind) for kind in kinds("optimizer")},
-    **{f"aggregation-{kind}": _PAPER.replace(aggregation=kind)
+    **{f"aggregation-{kind}": _PAPER.replace(aggregation=kind, segments=None)
        for kind in kinds("aggregation") if kind != "ssw"},
     "preprocess-lcn": _PAPER.replace(preprocess="lcn"),
     "plane-sgm-lcn": _PAPER.replace(fill="plane", optimizer="sgm", preprocess="lcn"),

@@ -154,7 +154,7 @@ def test_bad_arguments(kwargs, message):
 
 
 @pytest.mark.parametrize("content, message", [
-    ('{"fill_source": "all"}', "parameter fill_source must be one of 'filled', 'valid', got 'all'"),
+    ('{"fill_source": "all"}', "parameters in the old flat names ('fill_source'): convert the file"),
     ('{"fill": {"kind": "wmedian", "source": "all"}}',
      "parameter fill.source must be one of 'filled', 'valid', got 'all'"),
 ])
