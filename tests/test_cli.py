@@ -37,14 +37,13 @@ def pair(tmp_path_factory):
     iio.imwrite(folder / "im0.png", left)
     iio.imwrite(folder / "im1.png", right)
     iio.imwrite(folder / "small.png", right[:20, :30])
-    iio.imwrite(folder / "gray.png", right[..., 0])
     return folder
 
 
-def test_match_writes_pfm_and_png(pair, tmp_path, capsys):
+def test_match_writes_pfm_and_png(pair, tmp_path, capsys, tiny):
     out = tmp_path / "d.pfm"
     code = main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", str(NDISP),
-                 "-o", str(out), "--png", str(tmp_path / "d.png")])
+                 "-o", str(out), "--png", str(tmp_path / "d.png"), *tiny.args])
     assert code == 0
     disparity = read_pfm(out)
     assert disparity.shape == (40, 64) and disparity.dtype == np.float32
@@ -53,10 +52,13 @@ def test_match_writes_pfm_and_png(pair, tmp_path, capsys):
     assert "wrote" in capsys.readouterr().out
 
 
-def test_match_gray_colour_mix(pair, tmp_path):
+def test_match_gray_colour_mix(small_pair, tmp_path, tiny):
+    # the graph of the colour/gray pairs of test_cli_inputs_that_must_work below
     out = tmp_path / "d.pfm"
-    code = main(["match", str(pair / "im0.png"), str(pair / "gray.png"), "--ndisp", "8", "-o", str(out)])
-    assert code == 0 and read_pfm(out).shape == (40, 64)
+    files = small_pair.folder
+    code = main(["match", str(files / "left.png"), str(files / "right_gray.png"), "--ndisp", "8",
+                 "-o", str(out), *tiny.args])
+    assert code == 0 and read_pfm(out).shape == (small_pair.height, small_pair.width)
 
 
 @pytest.mark.parametrize(
@@ -167,16 +169,16 @@ def _stderr_on_a_terminal(argv: list[str], env: dict) -> tuple[int, list[str]]:
     return done.returncode, b"".join(chunks).decode().splitlines()
 
 
-def test_a_first_match_says_it_compiles_on_a_terminal_and_a_warm_one_does_not(pair, tmp_path):
+@pytest.mark.slow  # four fresh processes, each importing JAX (and two compiling)
+def test_a_first_match_says_it_compiles_on_a_terminal_and_a_warm_one_does_not(pair, tmp_path,
+                                                                               tiny):
     """A first call for an image size compiles for seconds: ``match`` says so on a terminal
     (``sswjax: compiling ...``, then its time). A second process finds the graph in the cache
     and says nothing; without the cache every process compiles, and says that. Where stderr is
     not a terminal (a script, a log) the same lines are written (issue 72: no silence there
     either; ``--quiet`` leaves them out, ``tests/test_compile_log.py``). (The method is a cheap
-    one, the paper's without superpixels and with a 3x3 box: the lines are the same for every
-    method, compiling it is not.)"""
-    cheap = ["--preset", "paper", "--set", "segments=none", "--set", "aggregation=box", "--set",
-             "aggregation.radius=1"]
+    one, conftest's tiny: the lines are the same for every method, compiling it is not.)"""
+    cheap = tiny.args
     cache = tmp_path / "cache"
     env = {**os.environ, "SSWJAX_CACHE_DIR": str(cache)}
     out = tmp_path / "d.pfm"
@@ -201,6 +203,7 @@ def test_a_first_match_says_it_compiles_on_a_terminal_and_a_warm_one_does_not(pa
     assert piped.returncode == 0 and compiling in piped.stderr.splitlines()
 
 
+@pytest.mark.slow  # the default preset on a 500 x 741 pair
 def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):
     """The scikit-image Motorcycle demo: bad 2.0 over known pixels <= 13.6 % (paper, Table 1)."""
     assert main(["demo", "-o", str(tmp_path)]) == 0
@@ -215,36 +218,42 @@ def test_demo_meets_paper_motorcycle_figure(tmp_path, capsys):
 # conftest's small_pair: 24x40, disparity 3, as colour, gray, 16-bit gray and RGBA PNGs.
 
 
-def _match_cli(files, tmp_path, left, right, ndisp=8):  # small_pair.ndisp
+def _match_cli(files, tmp_path, left, right, cheap, ndisp=8):  # small_pair.ndisp; tiny.args
     out = tmp_path / "d.pfm"
-    assert main(["match", str(files / left), str(files / right), "--ndisp", str(ndisp), "-o", str(out)]) == 0
+    assert main(["match", str(files / left), str(files / right), "--ndisp", str(ndisp), "-o", str(out),
+                 *cheap]) == 0
     return read_pfm(out)
 
 
-def test_cli_inputs_that_must_work(small_pair, tmp_path, capsys):
-    """Colour, gray, 16-bit, RGBA and colour/gray pairs, from files, agree with the API."""
+def test_cli_inputs_that_must_work(small_pair, tmp_path, capsys, tiny):
+    """Colour, gray, 16-bit, RGBA and colour/gray pairs, from files, agree with the API (on
+    conftest's tiny configuration: the inputs are what is tested)."""
     files, shift, ndisp = small_pair.folder, small_pair.shift, small_pair.ndisp
-    colour = _match_cli(files, tmp_path, "left.png", "right.png")
+    colour = _match_cli(files, tmp_path, "left.png", "right.png", tiny.args)
     assert np.median(colour[:, 12:]) == pytest.approx(shift, abs=0.05)
     # RGBA: the alpha channel is dropped, the result is bit-identical
-    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_rgba.png", "right_rgba.png"), colour)
+    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_rgba.png", "right_rgba.png", tiny.args),
+                                  colour)
     # gray pairs, 8 and 16 bits (v * 257 / 65535 == v / 255 exactly in float32)
-    gray = _match_cli(files, tmp_path, "left_gray.png", "right_gray.png")
+    gray = _match_cli(files, tmp_path, "left_gray.png", "right_gray.png", tiny.args)
     assert np.median(gray[:, 12:]) == pytest.approx(shift, abs=0.05)
     assert read_image(files / "left_gray16.png").dtype == np.uint16
-    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_gray16.png", "right_gray16.png"), gray)
+    np.testing.assert_array_equal(_match_cli(files, tmp_path, "left_gray16.png", "right_gray16.png",
+                                             tiny.args), gray)
     # colour + gray (either side): both used as gray, the colour one by BT.601 luma, like the API
-    mixed = _match_cli(files, tmp_path, "left.png", "right_gray.png")
+    mixed = _match_cli(files, tmp_path, "left.png", "right_gray.png", tiny.args)
     assert np.median(mixed[:, 12:]) == pytest.approx(shift, abs=0.05)
-    api = sswjax.match(read_image(files / "left.png"), read_image(files / "right_gray.png"), ndisp)
+    api = sswjax.match(read_image(files / "left.png"), read_image(files / "right_gray.png"), ndisp,
+                       params=tiny.params)
     np.testing.assert_array_equal(mixed, api)
-    mixed_other_way = _match_cli(files, tmp_path, "left_gray16.png", "right.png")
-    api = sswjax.match(read_image(files / "left_gray16.png"), read_image(files / "right.png"), ndisp)
+    mixed_other_way = _match_cli(files, tmp_path, "left_gray16.png", "right.png", tiny.args)
+    api = sswjax.match(read_image(files / "left_gray16.png"), read_image(files / "right.png"), ndisp,
+                       params=tiny.params)
     np.testing.assert_array_equal(mixed_other_way, api)
     assert "wrote" in capsys.readouterr().out
 
 
-def test_cli_16bit_colour_png(small_pair, tmp_path):
+def test_cli_16bit_colour_png(small_pair, tmp_path, tiny):
     """16-bit colour PNGs: all 16 bits read (with OpenCV), and matched like their 8-bit twins."""
     files, height, width = small_pair.folder, small_pair.height, small_pair.width
     cv2 = pytest.importorskip("cv2")
@@ -258,19 +267,23 @@ def test_cli_16bit_colour_png(small_pair, tmp_path):
     rgba = np.concatenate([left8.astype(np.uint16) * 257, np.full((height, width, 1), 65535, np.uint16)], -1)
     assert cv2.imwrite(str(tmp_path / "rgba64.png"), rgba[..., [2, 1, 0, 3]])
     np.testing.assert_array_equal(read_image(tmp_path / "rgba64.png"), rgba[..., :3])
-    disparity = _match_cli(tmp_path, tmp_path, "left48.png", "right48.png")
+    disparity = _match_cli(tmp_path, tmp_path, "left48.png", "right48.png", tiny.args)
     assert np.median(disparity[:, 12:]) == pytest.approx(small_pair.shift, abs=0.05)
 
 
 @pytest.mark.parametrize("preset", sorted(sswjax.PRESETS))
-def test_match_preset(pair, tmp_path, preset):
+def test_match_preset(pair, tmp_path, preset, recorded_match):
+    """``--preset NAME`` hands the matcher the preset and nothing else of its own: the same
+    call as ``sswjax.match(left, right, ndisp, params=sswjax.preset(NAME))``, whose maps are
+    the preset tests'. (The command's own map is compared with the API's, matched for real,
+    in ``test_set_reaches_the_matcher``.)"""
     out = tmp_path / "d.pfm"
     code = main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", str(NDISP),
                  "-o", str(out), "--preset", preset])
     assert code == 0
-    expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
-                            params=sswjax.preset(preset))
-    np.testing.assert_array_equal(read_pfm(out), expected)
+    assert recorded_match == [{"min_disp": 0, "params": sswjax.preset(preset),
+                               "plan": sswjax.ExecutionPlan(), "check_memory": False}]
+    assert read_pfm(out).shape == (40, 64)
 
 
 @pytest.mark.parametrize("args, message", [
@@ -368,16 +381,17 @@ def test_set_echoes_a_number_beyond_float32_as_typed(run_cli, typed, got):
                    f"float32 (the graph's dtype), got {got}\n")
 
 
-def test_set_reaches_the_matcher(pair, tmp_path, run_cli):
+def test_set_reaches_the_matcher(pair, tmp_path, run_cli, tiny):
+    # a traced option: the graph of test_match_writes_pfm_and_png, other numbers in it
     out = tmp_path / "d.pfm"
     code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
-                            "-o", out, "--preset", "paper", "--set", "segments=none",
-                            "--set", "refinement.iterations=1"])
+                            "-o", out, *tiny.args, "--set", "cost.census_weight=0"])
     assert code == 0, err
-    params = sswjax.preset("paper").replace(segments=None, **{"refinement.iterations": 1})
-    expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
-                            params=params)
+    left, right = read_image(pair / "im0.png"), read_image(pair / "im1.png")
+    expected = sswjax.match(left, right, NDISP,
+                            params=tiny.params.replace(**{"cost.census_weight": 0.0}))
     np.testing.assert_array_equal(read_pfm(out), expected)
+    assert not np.array_equal(expected, sswjax.match(left, right, NDISP, params=tiny.params))
 
 
 def test_params_list_names_every_stage_kind_and_option(run_cli):
