@@ -63,15 +63,14 @@ def test_top_level_reexports_the_public_api():
         assert name in sswjax.__all__
 
 
-def test_match_estimates_the_range_when_ndisp_is_none():
+def test_match_estimates_the_range_when_ndisp_is_none(tiny):
     """ndisp=None: the range of sswjax.api.auto_range.estimate_range, then the same map as
     when that range is given; min_disp cannot go with it. (The estimate's coarse pass is its
-    own, whatever the parameters: the map here is a cheap method's, the paper's without
-    superpixels.)"""
+    own, whatever the parameters: the map here is conftest's cheap method's.)"""
     rng = np.random.default_rng(3)
     right = rng.random((96, 192, 3), dtype=np.float32)
     left = np.roll(right, 20, axis=1)
-    params = sswjax.preset("paper").replace(segments=None)
+    params = tiny.params
     found = estimate_range(left, right)
     estimated = sswjax.match(left, right, None, params=params)
     given = sswjax.match(left, right, found.ndisp, min_disp=found.min_disp, params=params)

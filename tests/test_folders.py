@@ -133,15 +133,13 @@ def test_many_sizes_are_bucketed_unless_told(tmp_path, run_cli, fake_match, text
     assert all(buckets is None for _, buckets in fake_match.calls)
 
 
-def test_real_matching_equals_the_single_pair_command(folders, tmp_path, run_cli):
+def test_real_matching_equals_the_single_pair_command(folders, tmp_path, run_cli, tiny):
     left, right = folders
-    params = tmp_path / "cheap.json"
-    params.write_text('{"n_segments": 0, "aggregation_iterations": 1, "refine_iterations": 1}')
     out = tmp_path / "out"
-    assert run_cli(["match", left, right, "--ndisp", 8, "-o", out, "--params", params])[0] == 0
+    assert run_cli(["match", left, right, "--ndisp", 8, "-o", out, *tiny.args])[0] == 0
     single = tmp_path / "b.pfm"
     assert run_cli(["match", left / "b.png", right / "b.png", "--ndisp", 8, "-o", single,
-                    "--params", params])[0] == 0
+                    *tiny.args])[0] == 0
     assert read_pfm(out / "b.pfm").tobytes() == read_pfm(single).tobytes()
     assert np.median(read_pfm(out / "a.pfm")[:, 8:]) == pytest.approx(SHIFT, abs=0.05)
 
