@@ -1,6 +1,11 @@
-"""The search's surrogates against what they stand in for, its settings, its folds and its grid."""
+"""The search's surrogates against what they stand in for, its settings, its folds and its grid.
+
+The surrogates run jitted, as the search runs them (inside its step): one compilation per
+surrogate and options, not one per operation."""
 
 from __future__ import annotations
+
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -15,6 +20,11 @@ from sswjax.search.surrogates import WINDOW_FLOOR, soft_bad, window_nll
 
 
 
+def _jit(fn, **options):
+    """``fn`` with keyword ``options`` fixed, jitted."""
+    return jax.jit(functools.partial(fn, **options))
+
+
 def _volume(winners, ndisp=16, depth=5.0):
     """A (D, 1, N) cost volume with one clear minimum per pixel at ``winners``."""
     d = np.arange(ndisp, dtype=np.float32)[:, None, None]
@@ -24,22 +34,23 @@ def _volume(winners, ndisp=16, depth=5.0):
 def test_soft_bad_tends_to_the_bad_pixel_count():
     winners = np.array([[3, 7, 10, 12]])
     truth = jnp.asarray([[3.2, 8.5, 12.5, 12.0]], jnp.float32)  # errors 0.2, 1.5, 2.5, 0
-    loss = soft_bad(_volume(winners), truth, temperature=0.01, threshold=2.0, width=0.01)
+    loss = _jit(soft_bad, temperature=0.01, threshold=2.0, width=0.01)(_volume(winners), truth)
     assert np.allclose(np.asarray(loss), [[0, 0, 1, 0]], atol=1e-3)
-    loss = soft_bad(_volume(winners), truth, temperature=0.01, threshold=1.0, width=0.01)
+    loss = _jit(soft_bad, temperature=0.01, threshold=1.0, width=0.01)(_volume(winners), truth)
     assert np.allclose(np.asarray(loss), [[0, 1, 1, 0]], atol=1e-3)
 
 
 def test_window_nll_asks_for_mass_near_the_truth_not_a_mean_between_modes():
     truth = jnp.asarray([[6.0]], jnp.float32)
-    right = window_nll(_volume([[6]]), truth, temperature=0.1, radius=1.0)
+    nll = _jit(window_nll, temperature=0.1, radius=1.0)
+    right = nll(_volume([[6]]), truth)
     assert float(right[0, 0]) < 1e-3
     d = np.arange(16, dtype=np.float32)[:, None, None]
     two_modes = jnp.asarray(5.0 * np.minimum(np.minimum(np.abs(d - 2), np.abs(d - 10)), 1.0))
-    wrong = window_nll(two_modes, truth, temperature=0.1, radius=1.0)
+    wrong = nll(two_modes, truth)
     assert float(wrong[0, 0]) == pytest.approx(-np.log(WINDOW_FLOOR), rel=1e-3)
     # the soft-argmin of the same volume sits at the truth: a smooth L1 would call it right
-    assert float(SURROGATES["soft_l1"](two_modes, truth, temperature=0.1)[0, 0]) < 0.01
+    assert float(_jit(SURROGATES["soft_l1"], temperature=0.1)(two_modes, truth)[0, 0]) < 0.01
 
 
 @pytest.mark.parametrize("name", sorted(SURROGATES))
@@ -47,7 +58,7 @@ def test_every_surrogate_has_a_finite_gradient(name):
     volume = _volume([[3, 7, 10]]) + jnp.asarray(np.random.default_rng(0).random((16, 1, 3)),
                                                  jnp.float32)
     truth = jnp.asarray([[3.0, 9.0, 14.0]], jnp.float32)
-    grad = jax.grad(lambda c: surrogate(name)(c, truth, temperature=0.5).sum())(volume)
+    grad = jax.jit(jax.grad(lambda c: surrogate(name)(c, truth, temperature=0.5).sum()))(volume)
     assert grad.shape == volume.shape and bool(jnp.isfinite(grad).all())
     assert float(jnp.abs(grad).sum()) > 0
 
