@@ -1,14 +1,14 @@
 """Nothing lost on Ctrl-C: finished scenes are kept, ``--resume`` continues, outputs survive.
 
-The SIGINT test sends a real signal to a ``sswjax evaluate`` process (with a cheaper parameter
-set: the mechanics are what is tested); the others interrupt in process, with a fake method
-that needs no JAX. Scenes are conftest's ``middeval3`` folders (24 rows, disparity 3, ndisp 8).
+The SIGINT test sends a real signal to a ``sswjax evaluate`` process (with conftest's
+``tiny`` configuration: the mechanics are what is tested); the others interrupt in process,
+with a fake method that needs no JAX. Scenes are conftest's ``middeval3`` folders (24 rows,
+disparity 3, ndisp 8).
 """
 
 from __future__ import annotations
 
 import gc
-import json
 import shlex
 import signal
 import subprocess
@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 import pytest
 
+import sswjax
 from sswjax.cli import match as cli_match
 from sswjax.cli.common import interrupt_flag
 from sswjax.data.io import read_pfm, write_pfm
@@ -43,12 +44,12 @@ def _popen_with_default_sigint(argv, **kwargs) -> subprocess.Popen:
         )
 
 
-def test_evaluate_sigint_keeps_finished_scenes_and_resume_skips_them(tmp_path, middeval3):
+@pytest.mark.slow  # two fresh processes, one stopped by a real signal
+def test_evaluate_sigint_keeps_finished_scenes_and_resume_skips_them(tmp_path, middeval3, tiny):
     root = middeval3(tmp_path / "MiddEval3")
     scenes, height, shift = middeval3.scenes, middeval3.height, middeval3.shift
-    params = tmp_path / "cheap.json"  # faster compilation; the mechanics are what is tested
-    params.write_text(json.dumps({"n_segments": 0, "aggregation_iterations": 1, "refine_iterations": 1,
-                                  "lr_check": False}))
+    params = tmp_path / "tiny.json"  # faster compilation; the mechanics are what is tested
+    sswjax.save_params(params, tiny.params)
     out = tmp_path / "out"
     argv = ["evaluate", "--data", str(root), "--methods", "ssw", "--params", str(params), "-o", str(out)]
     first_done = out / "ssw" / scenes[0][0] / "timeSSW.txt"  # written after the scene's PFM

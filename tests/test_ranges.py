@@ -52,10 +52,12 @@ def test_positive_range_is_the_plain_run_shifted(scene):
     assert np.median(ranged[:, 45:]) == pytest.approx(8, abs=0.05)
 
 
-def test_ranges_with_buckets_strips_and_chunks(scene):
+def test_ranges_with_buckets_strips_and_chunks(scene, tiny):
+    """How the call runs (buckets, strips, chunks) moves no range: conftest's ``tiny``
+    configuration, as the plan is what is tested (the default's ranges are tested above)."""
     left, right = scene
     buckets = sswjax.ShapeBuckets(size_step=32, ndisp_step=16)
-    params = sswjax.Params()
+    params = tiny.params
     plan = sswjax.ExecutionPlan(strip_rows=16, strip_overlap=8, disparity_chunk=5, buckets=buckets)
     plain = sswjax.match(left, right(), NDISP, params=params, plan=plan)
     ranged = sswjax.match(left, right(5), NDISP, min_disp=5, params=params, plan=plan)
@@ -101,7 +103,7 @@ def test_the_widest_valid_ranges_are_accepted():
 
 # ----------------------------------------------------------------------------- command line
 
-def test_cli_min_disp_is_the_api(small_pair, tmp_path, run_cli):
+def test_cli_min_disp_is_the_api(small_pair, tmp_path, run_cli, tiny):
     import imageio.v3 as iio
 
     from sswjax.data.io import read_pfm
@@ -109,11 +111,12 @@ def test_cli_min_disp_is_the_api(small_pair, tmp_path, run_cli):
     folder = small_pair.folder
     code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp", 8,
                                "--min-disp", -2, "-o", tmp_path / "d.pfm",
-                               "--png", tmp_path / "d.png"])
+                               "--png", tmp_path / "d.png", *tiny.args])
     assert code == 0, stderr
     disparity = read_pfm(tmp_path / "d.pfm")
     left, right = (iio.imread(folder / name) for name in ("left.png", "right.png"))
-    np.testing.assert_array_equal(disparity, sswjax.match(left, right, 8, min_disp=-2))
+    np.testing.assert_array_equal(disparity, sswjax.match(left, right, 8, min_disp=-2,
+                                                          params=tiny.params))
     assert disparity.min() >= -2 and disparity.max() <= 5
     assert np.median(disparity) == pytest.approx(small_pair.shift, abs=0.05)
 

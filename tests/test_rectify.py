@@ -32,7 +32,6 @@ CENTRE = np.array([0.5, 0.01, -0.01])          # the right camera's centre in th
 T = -R @ CENTRE                                # x_right = R x_left + T
 CALIB = StereoCalibration(K1, D1, K2, D2, R, T, (WIDTH, HEIGHT))
 DEPTHS = (2.0, 8.0)                            # the scene lies at 2.4 .. 5.4
-CHEAP = ["--preset", "paper", "--set", "segments=none", "--set", "aggregation=box"]
 
 _waves = np.random.default_rng(3)
 FREQUENCIES = _waves.normal(size=(48, 3)) * 25.0
@@ -202,13 +201,13 @@ def test_estimate_range_of_a_shifted_pair(texture):
 # ----------------------------------------------------------------------------- command line
 
 
-def test_raw_rig_to_cloud_on_the_true_surfaces(rig, tmp_path, run_cli):
+def test_raw_rig_to_cloud_on_the_true_surfaces(rig, tmp_path, run_cli, tiny):
     folder, _, _, depth = rig
     out = tmp_path
     code, _, stderr = run_cli([
         "match", folder / "left.png", folder / "right.png", "--rectify", folder / "stereo.yaml",
         "--depth-range", *DEPTHS, "-o", out / "d.pfm", "--ply", out / "cloud.ply",
-        "--depth", out / "z.pfm", "--preset", "accurate"])
+        "--depth", out / "z.pfm", *tiny.args])
     assert code == 0, stderr
     assert "depths 2..8 are disparities" in stderr
     found = read_pfm(out / "z.pfm")
@@ -225,14 +224,14 @@ def test_raw_rig_to_cloud_on_the_true_surfaces(rig, tmp_path, run_cli):
     assert np.median(np.abs(distance - surface) / surface) < 0.01
 
 
-def test_outside_bit_in_the_outputs(rig, tmp_path, run_cli):
+def test_outside_bit_in_the_outputs(rig, tmp_path, run_cli, tiny):
     folder, left, right, _ = rig
     out = tmp_path
     code, _, stderr = run_cli([
         "match", folder / "left.png", folder / "right.png", "--rectify", folder / "stereo.yaml",
         "--alpha", "1", "--ndisp", "48", "--min-disp", "8", "-o", out / "d.pfm",
         "--validity", out / "v.png", "--invalid-as-inf", "--ply", out / "c.npz",
-        "--depth", out / "z.pfm", *CHEAP])
+        "--depth", out / "z.pfm", *tiny.args])
     assert code == 0, stderr
     validity, disparity = read_image(out / "v.png"), read_pfm(out / "d.pfm")
     pair = rectify_pair(left, right, CALIB, alpha=1.0)
@@ -247,7 +246,7 @@ def test_outside_bit_in_the_outputs(rig, tmp_path, run_cli):
     assert len(cloud["xyz"]) == np.isfinite(read_pfm(out / "z.pfm")).sum()
 
 
-def test_rectify_command(rig, tmp_path, run_cli):
+def test_rectify_command(rig, tmp_path, run_cli, tiny):
     folder, left, right, _ = rig
     raw = tmp_path / "raw"
     raw.mkdir()
@@ -272,7 +271,7 @@ def test_rectify_command(rig, tmp_path, run_cli):
     # the rectified folder matches as any Middlebury pair
     code, _, stderr = run_cli(["match", out / "im0.png", out / "im1.png", "--calib",
                                out / "calib.txt", "--ndisp", "auto", "-o", tmp_path / "d.pfm",
-                               *CHEAP])
+                               *tiny.args])
     assert code == 0, stderr
     assert "--ndisp auto chose disparities" in stderr
 
@@ -327,7 +326,7 @@ def test_folder_rectification(rig, tmp_path):
     assert rectify_images(argparse.Namespace(rectify=None), left, right)[0] is left
 
 
-def test_match_folders_with_rectify(rig, tmp_path, run_cli):
+def test_match_folders_with_rectify(rig, tmp_path, run_cli, tiny):
     """Two folders with --rectify: each pair rectified as a single pair is, the same map; with
     workers it is refused in one line."""
     folder, left, right, _ = rig
@@ -337,10 +336,10 @@ def test_match_folders_with_rectify(rig, tmp_path, run_cli):
             cv2.imwrite(str(tmp_path / side / name), image)
     calib = folder / "stereo.yaml"
     code, _, stderr = run_cli(["match", tmp_path / "L", tmp_path / "R", "--rectify", calib,
-                               "--ndisp", "48", "--preset", "fast", "-o", tmp_path / "out"])
+                               "--ndisp", "48", *tiny.args, "-o", tmp_path / "out"])
     assert code == 0, stderr
     code, _, stderr = run_cli(["match", tmp_path / "L" / "a.png", tmp_path / "R" / "a.png",
-                               "--rectify", calib, "--ndisp", "48", "--preset", "fast",
+                               "--rectify", calib, "--ndisp", "48", *tiny.args,
                                "-o", tmp_path / "single.pfm"])
     assert code == 0, stderr
     single = read_pfm(tmp_path / "single.pfm")

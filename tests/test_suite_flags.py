@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 MATCH_BOTH_PRESETS = r"""
 import sys
@@ -32,6 +33,7 @@ def _maps(path, env, cache) -> np.ndarray:
     return np.load(path)
 
 
+@pytest.mark.slow  # two fresh processes, each compiling two whole presets
 def test_the_suites_compiler_flags_give_the_users_maps_to_rounding(tmp_path, user_environment):
     suite = _maps(tmp_path / "suite.npy", os.environ, tmp_path / "suite-cache")
     user = _maps(tmp_path / "user.npy", user_environment, tmp_path / "user-cache")
