@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -39,7 +40,8 @@ def _pair(height, width, shift, seed):
 
 
 def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
-    params = sswjax.Params().replace(n_segments=20)
+    # the paper's method with few superpixels: the one preset with segments, padded too
+    params = sswjax.Params().replace(**{"segments.n_segments": 20})
     EXECUTABLES.clear()
     for (height, width), ndisp in (((40, 60), 12), ((50, 64), 9), ((64, 50), 16)):
         left, right = _pair(height, width, 5, height)
@@ -52,18 +54,22 @@ def test_pairs_of_nearby_sizes_compile_once_and_stay_accurate():
 
 def test_padded_disparities_are_never_chosen():
     left, right = _pair(40, 60, 2, 1)
-    params = sswjax.Params().replace(n_segments=20)
+    params = sswjax.Params().replace(**{"segments.n_segments": 20})  # the graph of the test above
     disparity = sswjax.match(left, right, 3, params=params, buckets=BUCKETS)  # volume of 16, range 3
     assert disparity.max() <= 2
 
 
 def test_second_process_reuses_the_compilation_cache(tmp_path):
+    # conftest's tiny configuration (the paper's without superpixels, a 3 x 3 box): any graph
+    # goes through the cache, a cheap one compiles in the first process in a second
     script = (
         "import numpy as np, sswjax\n"
         "from sswjax.runtime.compilation import enable_compilation_cache\n"
         "enable_compilation_cache()\n"
         "r = np.random.default_rng(0).random((24, 40, 3)).astype(np.float32)\n"
-        "sswjax.match(np.roll(r, 2, axis=1), r, 6, params=sswjax.Params().replace(n_segments=8))\n"
+        "params = sswjax.preset('paper').replace(segments=None, "
+        "aggregation={'kind': 'box', 'radius': 1})\n"
+        "sswjax.match(np.roll(r, 2, axis=1), r, 6, params=params)\n"
     )
     env = dict(os.environ, SSWJAX_CACHE_DIR=str(tmp_path / "cache"))
     subprocess.run([sys.executable, "-c", script], env=env, check=True)
@@ -73,6 +79,7 @@ def test_second_process_reuses_the_compilation_cache(tmp_path):
     assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == entries  # reused, not re-added
 
 
+@pytest.mark.slow  # three presets at two shapes each: a minute of compiling per preset
 @pytest.mark.parametrize("name", ["accurate", "balanced", "fast"])
 def test_a_padded_pair_is_matched_as_at_its_own_size(name):
     # Padding replicates the last row and column of both views; matched as such, the padded
@@ -103,8 +110,9 @@ def test_padding_as_edge_copies_the_nearest_pixel_of_the_pair(valid, reach):
     height, width = valid
     expected = np.pad(values[:, :height, :width], ((0, 0), (0, 9 - height), (0, 11 - width)),
                       mode="edge")
-    got = np.asarray(padding_as_edge(jnp.asarray(values), jnp.array(valid, jnp.int32),
-                                     reach=reach))
+    # jitted, as in the graph: one small compilation per reach instead of one per operation
+    edge = jax.jit(padding_as_edge, static_argnames="reach")
+    got = np.asarray(edge(jnp.asarray(values), jnp.array(valid, jnp.int32), reach=reach))
     rows, columns = (9, 11) if reach is None else (height + reach, width + reach)
     np.testing.assert_array_equal(got[:, :rows, :columns], expected[:, :rows, :columns])
     if reach is not None:

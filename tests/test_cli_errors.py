@@ -303,15 +303,14 @@ def test_max_memory_help_says_what_the_guard_does(small_pair):
 
 
 @pytest.mark.parametrize("flag", ["--bucket", "--strict"])
-def test_folder_flags_with_one_pair_say_they_are_ignored(small_pair, tmp_path, run_cli, flag):
+def test_folder_flags_with_one_pair_say_they_are_ignored(small_pair, tmp_path, run_cli, tiny,
+                                                          flag):
     """``--bucket`` pads the pairs of a folder run and ``--strict`` refuses a folder run with a
     bad pair; one pair is matched at its own shape and refused whole anyway: a note says the
     option is ignored (the run goes on: a script may pass it for both)."""
     files = small_pair.folder
     code, out, err = run_cli(["match", files / "left.png", files / "right.png", "--ndisp", NDISP,
-                              flag, "--preset", "paper", "--set", "segments=none",
-                              "--set", "aggregation=box", "--set", "aggregation.radius=1",
-                              "-o", tmp_path / "d.pfm"])
+                              flag, *tiny.args, "-o", tmp_path / "d.pfm"])
     assert code == 0, err
     assert f"sswjax: note: {flag} applies to folder runs; ignored for one pair\n" in err
     assert read_pfm(tmp_path / "d.pfm").shape == (small_pair.height, small_pair.width)

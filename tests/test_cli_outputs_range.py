@@ -17,8 +17,6 @@ import pytest
 from sswjax.data.io import read_pfm
 
 NDISP = 8
-CHEAP = ["--preset", "paper", "--set", "segments=none", "--set", "aggregation=box",
-         "--set", "aggregation.radius=1"]  # as tests/test_cli.py: compiles in a few seconds
 
 
 def _one_line_error(code, err, message):
@@ -79,7 +77,7 @@ def test_png_beyond_255_is_refused(texture, tmp_path, run_cli):
 
 
 def test_a_negative_range_goes_to_float_maps_colour_png_and_depth_with_doffs(small_pair, tmp_path,
-                                                                              run_cli):
+                                                                              run_cli, tiny):
     """What can hold a negative range is written: the float map (negative values kept), the
     colour PNG, and depth where ``doffs`` makes ``d + doffs`` positive; an existing 16-bit PNG
     map of the user survives the refusal of the same run with ``-o`` PNG."""
@@ -87,7 +85,7 @@ def test_a_negative_range_goes_to_float_maps_colour_png_and_depth_with_doffs(sma
     earlier = tmp_path / "earlier.png"
     iio.imwrite(earlier, np.full((2, 3), 77, np.uint16))
     base = ["match", files / "left.png", files / "right.png", "--ndisp", NDISP, "--min-disp",
-            "-12", *CHEAP]
+            "-12", *tiny.args]
     code, _, err = run_cli([*base, "-o", earlier])
     assert code == 2 and "a 16-bit PNG holds disparities 0 to 255.99" in err
     assert (iio.imread(earlier) == 77).all()
