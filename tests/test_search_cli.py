@@ -105,6 +105,7 @@ def test_a_second_run_refuses_the_run_folder_and_resume_reuses_it(searched, user
     assert code == 2 and "was run with other settings" in err
 
 
+@pytest.mark.slow  # two fresh processes, one stopped by a real signal
 def test_interrupted_search_resumes_to_the_same_parameters(searched, user_folder, tmp_path):
     _, reference = searched
     out = tmp_path / "params.json"
