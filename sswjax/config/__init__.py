@@ -5,17 +5,22 @@
                    transform; ``stage_config`` makes a class a frozen dataclass and a pytree
 ``parts``          the slots (the stages, in pipeline order) and the registry of their parts
 ``alignment``      the rectification's residual vertical offset, measured and taken out
-``cost``           pre-processing, the matching cost (Eq. 1-5), the superpixels (Eq. 6)
+``preprocess``     what the matching cost sees of the images (local contrast normalisation)
+``cost``           the matching cost (Eq. 1-5)
+``segments``       the superpixels (Eq. 6)
 ``aggregation``    the segment-side-window aggregation (Eq. 7) and the baseline aggregators
 ``optimizer``      semi-global optimisation (full and half resolution)
-``selection``      winner-takes-all (Eq. 8) and the checks that reject pixels (Eq. 9)
+``selection``      winner-takes-all and its sub-pixel fit (Eq. 8)
+``checks``         the tests that reject pixels: left-right (Eq. 9), uniqueness, aggregated view
 ``fill``           the fills of the rejected pixels, one class each
-``refinement``     the side-window median, coarse-to-fine and the smoothing of the map
+``refinement``     the side-window median over the map
+``coarse``         coarse-to-fine: the pair halved, the map doubled back
 ``band``           the full-resolution search of a few disparities around the map before it
-``params``         ``Params``, the root; ``replace`` by stage, dotted option or old name
-``legacy``         the old flat names (53 fields) and their mapping
+``smoothing``      the edge-aware smoothing of the finished map
+``params``         ``Params``, the root; ``replace`` by stage (a configuration, a kind, options)
+                   or dotted option
 ``validate``       checks derived from the options' declarations; rules across stages
-``serialize``      nested JSON, the old flat files
+``serialize``      nested JSON (old flat files are refused, naming ``sswjax params --upgrade``)
 ``presets``        the named compositions and the default
 =================  ==============================================================================
 """
@@ -25,7 +30,9 @@ from sswjax.config.aggregation import (Aggregator, BilateralAggregation, BoxAggr
                                        MedianAggregation, SideWindowAggregation)
 from sswjax.config.alignment import VerticalAlignment
 from sswjax.config.band import DisparityBand
-from sswjax.config.cost import LocalContrast, MatchingCost, Preprocessor, Slic
+from sswjax.config.checks import LeftRightCheck
+from sswjax.config.coarse import CoarseToFine
+from sswjax.config.cost import MatchingCost
 from sswjax.config.fields import ConfigError, Option, option, stage_config
 from sswjax.config.fill import (BackgroundFill, Fill, LeftBandFill, PlaneFill, VoteFill,
                                 WeightedMedianFill)
@@ -33,9 +40,12 @@ from sswjax.config.optimizer import HalfResolutionSemiGlobal, Optimizer, SemiGlo
 from sswjax.config.params import Params
 from sswjax.config.parts import SLOTS, Part, kinds, register
 from sswjax.config.presets import DEFAULT_PRESET, PRESETS, default_params, preset
-from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
-from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
+from sswjax.config.preprocess import LocalContrast, Preprocessor
+from sswjax.config.refinement import SideWindowMedian
+from sswjax.config.segments import Slic
+from sswjax.config.selection import WinnerTakesAll
 from sswjax.config.serialize import load_params, params_from_dict, save_params
+from sswjax.config.smoothing import GatedBilateralSmoothing
 from sswjax.config.validate import check_params
 
 __all__ = [

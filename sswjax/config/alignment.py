@@ -13,7 +13,7 @@ import jax.numpy as jnp
 from sswjax.config.fields import option
 from sswjax.config.fill import BackgroundFill
 from sswjax.config.parts import Part, register
-from sswjax.config.selection import LeftRightCheck
+from sswjax.config.checks import LeftRightCheck
 from sswjax.stages.alignment import (affine_offsets, fit_offsets, grid_offsets, shift_rows,
                                      tile_offsets)
 

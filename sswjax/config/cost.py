@@ -1,45 +1,19 @@
-"""Configurations of the stages before aggregation: pre-processing, matching cost, superpixels.
+"""Configuration of the matching cost (Eq. 1-5).
 
 Array conventions (whole module): images float32 ``(H, W, C)``, C in {1, 3}, values in
-[0, 1]; cost slices float32 ``(D, H, W)``, lower is better; labels int32 ``(H, W)``.
+[0, 1]; cost slices float32 ``(D, H, W)``, lower is better.
 """
 
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 
 from sswjax.config.fields import ConfigError, Sigmoid, Simplex, option
 from sswjax.config.parts import Part, register
 from sswjax.stages.bands import band_cost
 from sswjax.stages.cost import MatchingFeatures, matching_cost, matching_cost_at, matching_features
-from sswjax.stages.preprocess import local_contrast_normalization
-from sswjax.stages.segments import slic, slic_grid_shape
 
-__all__ = ["LocalContrast", "MatchingCost", "Preprocessor", "Slic"]
-
-
-class Preprocessor(Part):
-    """Base of the pre-processors: ``apply(image) -> image`` on each image of the pair before
-    the matching cost (the superpixels and the guides keep the images as given)."""
-
-    def apply(self, image: jax.Array) -> jax.Array:
-        """float32 (H, W, C) in [0, 1] -> the same shape, dtype and range."""
-        raise NotImplementedError
-
-
-@register("preprocess", "lcn")
-class LocalContrast(Preprocessor):
-    """Local contrast normalisation of the images the cost sees (dark, low-contrast pairs)."""
-
-    radius: int = option(7, static=True, low=1, high=50, help="window radius of the local mean "
-                         "and standard deviation")
-    eps: float = option(4 / 255, above=0, help="added to the local standard deviation "
-                        "(intensities in [0, 1])")
-
-    def apply(self, image: jax.Array) -> jax.Array:
-        """:func:`~sswjax.stages.preprocess.local_contrast_normalization`, float32 (H, W, C)."""
-        return local_contrast_normalization(image, radius=self.radius, eps=self.eps)
+__all__ = ["MatchingCost"]
 
 
 @register("cost", "tad-gradient-census")
@@ -47,7 +21,8 @@ class MatchingCost(Part):
     """TAD + Sobel gradient + census, each normalised to [0, 1] and weighted (Eq. 1-5).
 
     The defaults are ``tuning/params/tuned.json``'s: the truncations found by the optax search,
-    the weights set by hand (stored as the search's float32 values).
+    the weights set by hand (written as the shortest decimals of the float32 values the graph
+    computes with).
     """
 
     census_height: int = option(7, static=True, low=1, high=15, odd=True,
@@ -104,34 +79,3 @@ class MatchingCost(Part):
     def bound(self):
         """The largest cost of a matching pixel: the weights' sum (each term is in [0, 1])."""
         return abs(self.tad_weight) + abs(self.gradient_weight) + abs(self.census_weight)
-
-
-@register("segments", "slic")
-class Slic(Part):
-    """SLIC superpixels of the left image (Achanta et al. 2012), shared by the segment-aware
-    stages (Eq. 6)."""
-
-    n_segments: int = option(2000, static=True, low=1, high=1_000_000,
-                             help="requested superpixel count (Eq. 6)")
-    iterations: int = option(10, static=True, low=1, high=100,
-                             help="SLIC assignment / update rounds")
-    compactness: float = option(10.0, above=0, help="m of Eq. 6: colour against position")
-
-    def validate(self, params) -> None:
-        """Superpixels must have a stage that uses them."""
-        users = [part for part in (params.aggregation, params.optimizer, params.fill,
-                                   params.band)
-                 if part is not None and getattr(part, "uses_segments", False)]
-        if not users:
-            raise ConfigError("segments", "segments: no stage uses the superpixels (the "
-                              "segment-side-window aggregation, the semi-global optimiser, the "
-                              "plane fill or the band's segment range); set segments to None")
-
-    def labels(self, left: jax.Array) -> tuple[jax.Array, int]:
-        """int32 (H, W) labels of the left image and their static count."""
-        height, width = left.shape[:2]
-        ny, nx = slic_grid_shape(height, width, self.n_segments)
-        image = left if left.shape[-1] == 3 else jnp.repeat(left, 3, axis=-1)
-        labels = slic(image, n_segments=self.n_segments, compactness=self.compactness,
-                      iterations=self.iterations)
-        return labels, ny * nx

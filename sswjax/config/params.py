@@ -19,13 +19,18 @@ from collections.abc import Iterator, Mapping
 from sswjax.config.aggregation import Aggregator, SideWindowAggregation
 from sswjax.config.alignment import VerticalAlignment
 from sswjax.config.band import DisparityBand
-from sswjax.config.cost import MatchingCost, Preprocessor, Slic
+from sswjax.config.checks import LeftRightCheck
+from sswjax.config.coarse import CoarseToFine
+from sswjax.config.cost import MatchingCost
 from sswjax.config.fields import ConfigError, as_float, is_config, option_fields, stage_config
 from sswjax.config.fill import BackgroundFill, Fill
 from sswjax.config.optimizer import Optimizer
 from sswjax.config.parts import SLOTS, kinds
-from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing, SideWindowMedian
-from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
+from sswjax.config.preprocess import Preprocessor
+from sswjax.config.refinement import SideWindowMedian
+from sswjax.config.segments import Slic
+from sswjax.config.selection import WinnerTakesAll
+from sswjax.config.smoothing import GatedBilateralSmoothing
 
 __all__ = ["Params"]
 

@@ -38,11 +38,13 @@ from typing import NamedTuple
 from sswjax.config.aggregation import SideWindowAggregation
 from sswjax.config.alignment import VerticalAlignment
 from sswjax.config.band import DisparityBand
+from sswjax.config.checks import LeftRightCheck
+from sswjax.config.coarse import CoarseToFine
 from sswjax.config.fill import LeftBandFill, VoteFill, WeightedMedianFill
 from sswjax.config.optimizer import SemiGlobal
 from sswjax.config.params import Params
-from sswjax.config.refinement import CoarseToFine, GatedBilateralSmoothing
-from sswjax.config.selection import LeftRightCheck, WinnerTakesAll
+from sswjax.config.selection import WinnerTakesAll
+from sswjax.config.smoothing import GatedBilateralSmoothing
 
 __all__ = ["DEFAULT_PRESET", "PRESETS", "Preset", "default_params", "preset"]
 

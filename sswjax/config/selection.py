@@ -1,17 +1,16 @@
-"""Configurations of the selection (winner-takes-all, sub-pixel fit) and of the tests that
-reject a pixel's disparity (left-right check, uniqueness, the aggregated cost's right view).
+"""Configuration of the selection: winner-takes-all and its sub-pixel fit (Eq. 8).
 
 The graph (:mod:`sswjax.graph.refine`) reads these options; the stage functions are those of
-:mod:`sswjax.stages.selection` and :mod:`sswjax.stages.checks`.
+:mod:`sswjax.stages.selection`.
 """
 
 from __future__ import annotations
 
-from sswjax.config.fields import ConfigError, is_set, option
+from sswjax.config.fields import option
 from sswjax.config.parts import Part, register
 from sswjax.stages.selection import SUBPIXEL_FITS
 
-__all__ = ["LeftRightCheck", "WinnerTakesAll"]
+__all__ = ["WinnerTakesAll"]
 
 
 @register("selection", "wta")
@@ -25,32 +24,3 @@ class WinnerTakesAll(Part):
     fit: str = option("parabola", static=True, choices=tuple(SUBPIXEL_FITS),
                       help="the curve of the sub-pixel fit: a parabola (Eq. 8) or two lines "
                            "of opposite slopes (equiangular)")
-
-
-@register("checks", "lr")
-class LeftRightCheck(Part):
-    """Left-right consistency check (Eq. 9), optionally with two occlusion tests: uniqueness of
-    each right pixel's claim, and the right view of the cost before optimisation."""
-
-    tolerance: float = option(0.0, low=0, grid=0.5, help="largest left / right disagreement "
-                              "accepted, in pixels")
-    uniqueness_gap: int = option(0, static=True, low=0, high=100_000, grid=1,
-                                 help="g > 0: also reject a pixel whose right pixel is claimed "
-                                      "by a disparity g or more apart at a lower cost before "
-                                      "aggregation; 0: off")
-    uniqueness_radius: int = option(2, static=True, low=0, high=50,
-                                    help="the claims' costs are means over (2r+1)^2 pixels; 0: "
-                                         "the pixel's own cost")
-    aggregated_gap: int = option(0, static=True, low=0, high=100_000, grid=1,
-                                 help="g > 0 (with an optimizer): also reject where the right "
-                                      "view of the aggregated cost before the optimiser "
-                                      "disagrees by g or more; 0: off")
-
-    def validate(self, params) -> None:
-        """The uniqueness radius needs the test on; the aggregated view an optimiser."""
-        if self.uniqueness_gap == 0 and is_set(self, "uniqueness_radius"):
-            raise ConfigError("checks.uniqueness_radius", "parameter checks.uniqueness_radius "
-                              "acts only with checks.uniqueness_gap > 0")
-        if self.aggregated_gap > 0 and params.optimizer is None:
-            raise ConfigError("checks.aggregated_gap", "parameter checks.aggregated_gap needs an "
-                              "optimizer: without one the aggregated cost is the one selected")
