@@ -12,7 +12,6 @@
 ``compilation``    XLA's persistent compilation cache
 ``executables``    the bound on the compiled graphs a process keeps alive
 ``stored``         each graph's trace and executable on disk, for the next process
-``lapack``         LAPACK's kernels for stored graphs: registered before a load, skipped if unused
 ``folder_bound``   the stored graphs' folder bounded, the least recently used files removed
 =================  ==============================================================================
 """

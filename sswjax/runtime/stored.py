@@ -7,9 +7,8 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
 ``sswjax match``. This module keeps two files per graph in ``<compilation cache>/graphs``:
 
 - the lowered program, serialized by ``jax.export`` (StableHLO, ``.jaxexport``): a process that
-  finds it deserializes it and lowers a call to it (a fraction of the trace; without importing
-  SciPy for LAPACK where the program calls none, :mod:`sswjax.runtime.lapack`); XLA's cache
-  then gives the executable;
+  finds it deserializes it and lowers a call to it (a fraction of the trace); XLA's cache then
+  gives the executable;
 - the compiled executable itself (``.xlaexec``, :mod:`jax.experimental.serialize_executable`),
   written by the process in which XLA compiled it (not read it from XLA's cache:
   :func:`compile_lowered`), keyed further by the host (:func:`host_digest`: the backend and
@@ -19,10 +18,10 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   (:func:`executables_stored`). A test worker once crashed (a segmentation fault) in the first
   run of such an executable: it called LAPACK (the ``plane`` fill solves with it) and nothing
   in that process had registered LAPACK's kernels, which lowering a call does. The file says
-  whether its executable calls LAPACK, and the kernels are registered before it is loaded
-  (:mod:`sswjax.runtime.lapack`). The executable is compressed (zlib: 1.8 MB to 0.33 MB for
-  ``accurate`` on a trainingQ pair, 4 ms to expand). It is used for calls on concrete arrays
-  of the default device; a call under a transformation (a tracer among the arguments) or with
+  whether its executable calls LAPACK (:func:`calls_lapack`), and the kernels are
+  registered before it is loaded (:func:`register_lapack`). The executable is compressed
+  (zlib: 1.8 MB to 0.33 MB for ``accurate`` on a trainingQ pair, 4 ms to expand). It is used
+  for calls on concrete arrays of the default device; a call under a transformation (a tracer among the arguments) or with
   arrays on another device goes through the lowered program as above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
   the call goes through the lowered program. The file is a pickle that loads machine code:
@@ -56,14 +55,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import jaxlib
 from jax.experimental import serialize_executable
 
 from sswjax.runtime.folder_bound import touch, trim
-from sswjax.runtime.lapack import calls_lapack, lowering_without_lapack, register_lapack
 
-__all__ = ["StoredGraph", "compile_lowered", "executables_stored", "graph_folder",
-           "graph_key", "host_digest", "source_digest"]
+__all__ = ["StoredGraph", "calls_lapack", "compile_lowered", "executables_stored", "graph_folder",
+           "graph_key", "host_digest", "register_lapack", "source_digest"]
 
 _SUFFIX = ".jaxexport"
 _EXECUTABLE_SUFFIX = ".xlaexec"
@@ -165,6 +164,35 @@ def _load(path: Path, read: Callable):
         return None
     touch(path)
     return value
+
+
+def calls_lapack(exported: jax.export.Exported) -> bool:
+    """Whether the module of ``exported`` calls a LAPACK kernel (a custom call whose target
+    starts with ``lapack_``, as jaxlib names them; ``jnp.linalg``, the ``plane`` fill); a module
+    that cannot be read says True.
+
+    Examples
+    --------
+    >>> spec = jax.ShapeDtypeStruct((3, 3), jnp.float32)
+    >>> calls_lapack(jax.export.export(jax.jit(lambda a: a @ a))(spec))
+    False
+    >>> calls_lapack(jax.export.export(jax.jit(jnp.linalg.inv))(spec))
+    True
+    """
+    try:
+        text = exported.mlir_module()
+    except Exception:  # noqa: BLE001 - unreadable: register the kernels
+        return True
+    return "lapack_" in text
+
+
+@functools.cache
+def register_lapack() -> None:
+    """Register LAPACK's kernels in this process, as lowering a call to one does (it lowers
+    one, ``jnp.linalg.inv`` of a 1 x 1 matrix; nothing is compiled), once per process. An
+    executable loaded from a file that calls them, where nothing registered them, dies on its
+    first run with a segmentation fault."""
+    jax.jit(jnp.linalg.inv).lower(jax.ShapeDtypeStruct((1, 1), jnp.float32))
 
 
 def _flagged(lapack: bool, body: bytes) -> bytes:
@@ -321,12 +349,9 @@ class StoredGraph:
         return self._call
 
     def _through_trace(self, leaves: Sequence, *, lower: bool = False):
-        """Call (or with ``lower``, lower) the jitted stored trace on ``leaves``; a trace that
-        calls no LAPACK kernel is lowered without registering them (:mod:`.lapack`: no SciPy
-        import, 0.14 s of a warm process)."""
+        """Call (or with ``lower``, lower) the jitted stored trace on ``leaves``."""
         call = self._traced()
-        with lowering_without_lapack(skip=not self._lapack):
-            return call.lower(*leaves) if lower else call(*leaves)
+        return call.lower(*leaves) if lower else call(*leaves)
 
     def _executable(self, leaves: Sequence) -> jax.stages.Compiled:
         """The compiled graph: kept, else read from ``folder``, else lowered and compiled
