@@ -9,6 +9,9 @@ import sswjax
 from sswjax.data.io import read_pfm
 from sswjax.stages.confidence import LEFT_BAND, LOW_CONFIDENCE, LR_FAILED
 
+# The paper's method without superpixels: its side windows keep the left band and the
+# occlusion left of the square as the first test reads them (conftest's 3 x 3 box does not:
+# a pixel of the band finds disparity 0). The other tests take conftest's tiny configuration.
 PARAMS = sswjax.preset("paper").replace(segments=None)
 
 
@@ -39,18 +42,18 @@ def test_match_with_confidence_is_match_with_more(pair):
     assert (everything.validity & LOW_CONFIDENCE).mean() > 0.99
 
 
-def test_strips_and_buckets_stitch_every_output(pair):
-    whole = sswjax.match_with_confidence(*pair, 12, params=PARAMS)
+def test_strips_and_buckets_stitch_every_output(pair, tiny):
+    whole = sswjax.match_with_confidence(*pair, 12, params=tiny.params)
     # Without superpixels every stage sees a few rows around a pixel: exact strips.
-    strips = sswjax.match_with_confidence(*pair, 12, params=PARAMS, plan=sswjax.ExecutionPlan(
+    strips = sswjax.match_with_confidence(*pair, 12, params=tiny.params, plan=sswjax.ExecutionPlan(
         strip_rows=20, strip_overlap=24))
     for name in sswjax.Matched._fields:
         np.testing.assert_array_equal(getattr(strips, name), getattr(whole, name), err_msg=name)
-    bucketed = sswjax.match_with_confidence(*pair, 12, params=PARAMS,
+    bucketed = sswjax.match_with_confidence(*pair, 12, params=tiny.params,
                                             buckets=sswjax.ShapeBuckets(32, 16))
     assert all(getattr(bucketed, name).shape == (90, 60) for name in sswjax.Matched._fields)
     np.testing.assert_array_equal(bucketed.disparity, sswjax.match(
-        *pair, 12, params=PARAMS, buckets=sswjax.ShapeBuckets(32, 16)))
+        *pair, 12, params=tiny.params, buckets=sswjax.ShapeBuckets(32, 16)))
     # Padding the right border (4 columns, edge-replicated) changes the right view's winners
     # near it, so the last columns differ; elsewhere a pixel here and there.
     inner = (slice(None), slice(0, 54))
@@ -58,13 +61,13 @@ def test_strips_and_buckets_stitch_every_output(pair):
     assert np.mean((bucketed.validity != whole.validity)[inner]) < 0.01
 
 
-def test_sgm_outputs_and_min_disp(pair):
+def test_sgm_outputs_and_min_disp(pair, tiny):
     params, plan = sswjax.preset("accurate"), sswjax.ExecutionPlan(strip_rows=40, strip_overlap=16)
     out = sswjax.match_with_confidence(*pair, 12, params=params, plan=plan)
     np.testing.assert_array_equal(out.disparity, sswjax.match(*pair, 12, params=params, plan=plan))
     assert np.median(out.confidence[35:55, 30:40]) > 0.2
     # A range starting at 2: the band is judged on the final disparity (x - d < 0).
-    shifted = sswjax.match_with_confidence(*pair, 10, min_disp=2, params=PARAMS)
+    shifted = sswjax.match_with_confidence(*pair, 10, min_disp=2, params=tiny.params)
     band = np.arange(60)[None, :] - shifted.disparity < 0
     np.testing.assert_array_equal((shifted.validity & LEFT_BAND) > 0, band)
 
@@ -76,12 +79,12 @@ def test_api_rejects_bad_options(pair):
         sswjax.match_with_confidence(*pair, 12, measure="peak")
 
 
-def test_cli_confidence_by_its_extension(small_pair, run_cli, tmp_path):
+def test_cli_confidence_by_its_extension(small_pair, run_cli, tmp_path, tiny):
     left, right = small_pair.folder / "left.png", small_pair.folder / "right.png"
     maps = [tmp_path / name for name in ("c.pfm", "c.npy", "c.tif")]
     for path in maps:
         code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", tmp_path / "d.pfm",
-                                "--confidence", path])
+                                "--confidence", path, *tiny.args])
         assert code == 0, err
     confidence = read_pfm(maps[0])
     assert confidence.shape == (small_pair.height, small_pair.width)
@@ -89,14 +92,14 @@ def test_cli_confidence_by_its_extension(small_pair, run_cli, tmp_path):
     np.testing.assert_array_equal(iio.imread(maps[2]), confidence)
 
 
-def test_cli_confidence_validity_and_inf(small_pair, run_cli, tmp_path):
+def test_cli_confidence_validity_and_inf(small_pair, run_cli, tmp_path, tiny):
     left, right = small_pair.folder / "left.png", small_pair.folder / "right.png"
     plain, inf = tmp_path / "plain.pfm", tmp_path / "inf.pfm"
     conf, valid = tmp_path / "conf.pfm", tmp_path / "valid.png"
-    code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", plain])
+    code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", plain, *tiny.args])
     assert code == 0, err
     code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", inf, "--confidence", conf,
-                            "--validity", valid, "--invalid-as-inf"])
+                            "--validity", valid, "--invalid-as-inf", *tiny.args])
     assert code == 0, err
     dense, sparse = read_pfm(plain), read_pfm(inf)
     confidence, validity = read_pfm(conf), iio.imread(valid)
@@ -106,7 +109,8 @@ def test_cli_confidence_validity_and_inf(small_pair, run_cli, tmp_path):
     np.testing.assert_array_equal(np.isinf(sparse), validity != 0)
     np.testing.assert_array_equal(sparse[validity == 0], dense[validity == 0])
     # Without --invalid-as-inf the -o map is the dense one.
-    code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", inf, "--validity", valid])
+    code, _, err = run_cli(["match", left, right, "--ndisp", 8, "-o", inf, "--validity", valid,
+                            *tiny.args])
     assert code == 0, err
     np.testing.assert_array_equal(read_pfm(inf), dense)
 
