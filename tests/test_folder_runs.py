@@ -3,7 +3,7 @@
 map, a bad pair is named while the good ones are written, and ``--workers`` beyond the cores
 is capped with a quiet shutdown.
 
-Every pair is 24 x 40 with ndisp 8 and the cheap method of ``tests/cluster``: one graph.
+Every pair is 24 x 40 with ndisp 8 and conftest's tiny configuration: one graph.
 """
 
 from __future__ import annotations
@@ -20,8 +20,6 @@ import pytest
 from sswjax.data.io import read_pfm
 
 HEIGHT, WIDTH, NDISP, SHIFT = 24, 40, 8, 3
-CHEAP = ["--preset", "paper", "--set", "segments=none", "--set", "aggregation=box",
-         "--set", "aggregation.radius=1"]
 
 # Takes the lock of the folder argv[1] as a run does, says so, and holds it until stdin closes
 # (or the process is killed).
@@ -61,7 +59,7 @@ def _messages(stderr: str) -> list[str]:
 
 
 def test_a_folder_in_use_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path, texture,
-                                                                       run_cli):
+                                                                       run_cli, tiny):
     left, right = _folders(tmp_path, texture, ["a.png", "b.png"])
     out = tmp_path / "out"
     out.mkdir()
@@ -69,7 +67,7 @@ def test_a_folder_in_use_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path,
                               stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline() == "held\n"
-        argv = ["match", left, right, "--ndisp", NDISP, "-o", out, *CHEAP]
+        argv = ["match", left, right, "--ndisp", NDISP, "-o", out, *tiny.args]
         for folder in (left, right):  # a bad pair: not named, the run is refused first
             (folder / "c.png").write_text("not an image\n")
         code, stdout, stderr = run_cli(argv)
@@ -93,10 +91,10 @@ def test_a_folder_in_use_is_refused_and_a_dead_runs_lock_is_taken_over(tmp_path,
     assert sorted(os.listdir(out)) == [".sswjax-run.json", "a.pfm", "b.pfm"]  # lock released
 
 
-def test_resume_keeps_only_the_maps_written_with_its_settings(tmp_path, texture, run_cli):
+def test_resume_keeps_only_the_maps_written_with_its_settings(tmp_path, texture, run_cli, tiny):
     left, right = _folders(tmp_path, texture, ["a.png", "b.png"])
     out = tmp_path / "out"
-    argv = ["match", left, right, "--ndisp", NDISP, "-o", out, *CHEAP]
+    argv = ["match", left, right, "--ndisp", NDISP, "-o", out, *tiny.args]
     assert run_cli(argv)[0] == 0
     path = out / ".sswjax-run.json"
     record = json.loads(path.read_text())
@@ -128,10 +126,10 @@ def bad_folders(tmp_path, texture):
     return left, right
 
 
-def test_bad_pairs_are_named_and_the_good_ones_written(bad_folders, tmp_path, run_cli):
+def test_bad_pairs_are_named_and_the_good_ones_written(bad_folders, tmp_path, run_cli, tiny):
     left, right = bad_folders
     out = tmp_path / "out"
-    code, stdout, stderr = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out, *CHEAP])
+    code, stdout, stderr = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out, *tiny.args])
     assert code == 2
     assert "wrote 2 disparity maps" in stdout and "2 failed" in stdout
     lines = _messages(stderr)
@@ -145,11 +143,11 @@ def test_bad_pairs_are_named_and_the_good_ones_written(bad_folders, tmp_path, ru
                                                                                  "d.pfm"]
 
 
-def test_strict_refuses_the_whole_run(bad_folders, tmp_path, run_cli):
+def test_strict_refuses_the_whole_run(bad_folders, tmp_path, run_cli, tiny):
     left, right = bad_folders
     out = tmp_path / "out"
     code, stdout, stderr = run_cli(["match", left, right, "--ndisp", NDISP, "-o", out,
-                                    "--strict", *CHEAP])
+                                    "--strict", *tiny.args])
     assert (code, stdout) == (2, "")
     assert stderr.count("\n") == 1, stderr
     assert stderr.startswith(f"sswjax: error: pair b.png: cannot read image {left / 'b.png'}: ")
@@ -157,7 +155,9 @@ def test_strict_refuses_the_whole_run(bad_folders, tmp_path, run_cli):
     assert not out.exists()
 
 
-def test_workers_beyond_the_cores_are_capped_and_a_bad_pair_skipped_quietly(tmp_path, texture):
+@pytest.mark.slow  # a fresh process starting a Dask cluster whose workers import JAX and compile
+def test_workers_beyond_the_cores_are_capped_and_a_bad_pair_skipped_quietly(tmp_path, texture,
+                                                                           tiny):
     pytest.importorskip("distributed")
     left, right = _folders(tmp_path, texture, ["a.png", "b.png", "c.png"])
     (left / "b.png").write_text("not an image\n")
@@ -165,7 +165,7 @@ def test_workers_beyond_the_cores_are_capped_and_a_bad_pair_skipped_quietly(tmp_
     cores = sorted(os.sched_getaffinity(0))[:2] if hasattr(os, "sched_getaffinity") else None
     run = subprocess.run([sys.executable, "-c", ON_CORES, repr(cores), "match", str(left),
                           str(right), "--ndisp", str(NDISP), "-o", str(out), "--workers", "64",
-                          *CHEAP], capture_output=True, text=True, timeout=400, check=False)
+                          *tiny.args], capture_output=True, text=True, timeout=400, check=False)
     count = len(cores) if cores is not None else os.cpu_count()
     assert run.returncode == 2, run.stderr
     assert "Traceback" not in run.stderr and "killing" not in run.stderr, run.stderr

@@ -208,14 +208,14 @@ def test_top_level_exports():
 
 # ----------------------------------------------------------------------------- command line
 
-def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli):
+def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli, tiny):
     from sswjax.data.io import read_pfm
 
     folder, out = small_pair.folder, tmp_path
     code, _, stderr = run_cli([
         "match", folder / "left.png", folder / "right.png", "--ndisp", small_pair.ndisp,
         "-o", out / "d.pfm", "--depth", out / "z.pfm", "--ply", out / "c.ply",
-        "--focal", 100, "--baseline", 0.5, "--doffs", 1, "--principal", 20, 12])
+        "--focal", 100, "--baseline", 0.5, "--doffs", 1, "--principal", 20, 12, *tiny.args])
     assert code == 0, stderr
     disparity, depth = read_pfm(out / "d.pfm"), read_pfm(out / "z.pfm")
     np.testing.assert_array_equal(depth, depth_from_disparity(disparity, focal=100, baseline=0.5,
@@ -230,19 +230,19 @@ def test_cli_depth_ply_and_kitti_png_by_hand(small_pair, tmp_path, run_cli):
     assert len(xyz) == np.isfinite(depth).sum()
 
 
-def test_cli_npz_cloud_and_depth_range(small_pair, tmp_path, run_cli):
+def test_cli_npz_cloud_and_depth_range(small_pair, tmp_path, run_cli, tiny):
     folder = small_pair.folder
     code, _, stderr = run_cli([
         "match", folder / "left.png", folder / "right.png", "-o", tmp_path / "d.pfm",
         "--ply", tmp_path / "c.npz", "--focal", 100, "--baseline", 0.5,
-        "--depth-range", 10, "inf"])                 # disparities 0 .. 5 (+ 2 px): 0..7
+        "--depth-range", 10, "inf", *tiny.args])     # disparities 0 .. 5 (+ 2 px): 0..7
     assert code == 0, stderr
     assert "depths 10..inf are disparities 0..7 (--min-disp 0 --ndisp 8)" in stderr
     with np.load(tmp_path / "c.npz") as cloud:
         assert cloud["xyz"].shape == (small_pair.height * small_pair.width, 3)
 
 
-def test_cli_depth_png(small_pair, tmp_path, run_cli):
+def test_cli_depth_png(small_pair, tmp_path, run_cli, tiny):
     from sswjax.data.io import read_pfm
     from sswjax.data.scaled import read_scaled_disparity
 
@@ -250,7 +250,7 @@ def test_cli_depth_png(small_pair, tmp_path, run_cli):
     rig = ["--focal", 100, "--baseline", 0.5, "--ndisp", small_pair.ndisp]
     code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", *rig, "-o",
                                tmp_path / "d.pfm", "--depth", tmp_path / "z.PNG",
-                               "--depth-scale", 1000])
+                               "--depth-scale", 1000, *tiny.args])
     assert code == 0, stderr
     depth = depth_from_disparity(read_pfm(tmp_path / "d.pfm"), focal=100, baseline=0.5)
     written = read_scaled_disparity(tmp_path / "z.PNG", scale=1000)   # 0 -> inf
@@ -267,7 +267,7 @@ def test_cli_depth_png(small_pair, tmp_path, run_cli):
     assert (written[finite] == expected[finite]).mean() > 0.99
 
 
-def test_cli_calib_file(small_pair, tmp_path, run_cli):
+def test_cli_calib_file(small_pair, tmp_path, run_cli, tiny):
     from sswjax.data.io import read_pfm
 
     calib = tmp_path / "calib.txt"
@@ -275,7 +275,8 @@ def test_cli_calib_file(small_pair, tmp_path, run_cli):
     folder = small_pair.folder
     code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp",
                                small_pair.ndisp, "-o", tmp_path / "d.pfm", "--calib", calib,
-                               "--depth", tmp_path / "z.pfm", "--ply", tmp_path / "c.ply"])
+                               "--depth", tmp_path / "z.pfm", "--ply", tmp_path / "c.ply",
+                               *tiny.args])
     assert code == 0, stderr
     disparity = read_pfm(tmp_path / "d.pfm")
     np.testing.assert_array_equal(read_pfm(tmp_path / "z.pfm"),
