@@ -3,8 +3,9 @@
 The tagged files are written here with Pillow: the upright pixels turned the other way and the
 tag that turns them back. Pillow's own ``ImageOps.exif_transpose`` is the reference for what each
 of the 8 orientations means; imageio, which reads the stored pixels as they are, gives the
-stored pixels of lossy files. The command-line runs match 24x40 pairs with ndisp 8 (conftest's
-sizes), so they share one compilation.
+stored pixels of lossy files. The command-line runs match 24x40 pairs with ndisp 8 and conftest's
+``tiny`` configuration (conftest's sizes), so they share one compilation with the other plumbing
+tests.
 """
 
 from __future__ import annotations
@@ -113,13 +114,13 @@ def test_image_size_from_the_header_is_upright(tmp_path, upright, suffix):
 
 
 @pytest.fixture(scope="module")
-def upright_map(tmp_path_factory, upright):
+def upright_map(tmp_path_factory, upright, tiny):
     """The command line's map of the upright pair, and the folder of its files."""
     folder = tmp_path_factory.mktemp("upright")
     iio.imwrite(folder / "left.png", upright[0])
     iio.imwrite(folder / "right.png", upright[1])
     code, _ = _run(["match", folder / "left.png", folder / "right.png", "--ndisp", NDISP,
-                    "-o", folder / "d.pfm"])
+                    "-o", folder / "d.pfm", *tiny.args])
     assert code == 0
     return read_pfm(folder / "d.pfm")
 
@@ -134,11 +135,12 @@ def _run(argv):
 
 
 @pytest.mark.parametrize("orientation", [3, 6, 8])
-def test_cli_matches_a_turned_pair_as_the_upright_one(tmp_path, run_cli, upright, upright_map,
-                                                      orientation):
+def test_cli_matches_a_turned_pair_as_the_upright_one(tmp_path, run_cli, tiny, upright,
+                                                      upright_map, orientation):
     left = write_tagged(tmp_path / "left.png", upright[0], orientation)
     right = write_tagged(tmp_path / "right.png", upright[1], orientation)
-    code, _, err = run_cli(["match", left, right, "--ndisp", NDISP, "-o", tmp_path / "d.pfm"])
+    code, _, err = run_cli(["match", left, right, "--ndisp", NDISP, "-o", tmp_path / "d.pfm",
+                            *tiny.args])
     assert code == 0, err
     words = {3: "3: rotated 180°", 6: "6: rotated 90° clockwise",
              8: "8: rotated 90° counter-clockwise"}[orientation]
@@ -149,24 +151,26 @@ def test_cli_matches_a_turned_pair_as_the_upright_one(tmp_path, run_cli, upright
     assert np.array_equal(disparity, upright_map)
 
 
-def test_cli_matches_a_turned_jpeg_pair_as_its_pixels_turned(tmp_path, run_cli, upright,
+def test_cli_matches_a_turned_jpeg_pair_as_its_pixels_turned(tmp_path, run_cli, tiny, upright,
                                                              upright_map):
     paths = [write_tagged(tmp_path / f"{side}.jpg", image, 6, quality=95)
              for side, image in zip(("left", "right"), upright)]
-    code, _, err = run_cli(["match", *paths, "--ndisp", NDISP, "-o", tmp_path / "d.pfm"])
+    code, _, err = run_cli(["match", *paths, "--ndisp", NDISP, "-o", tmp_path / "d.pfm",
+                            *tiny.args])
     assert code == 0, err
     turned = [np.rot90(iio.imread(path), -1) for path in paths]  # imageio: stored pixels
     disparity = read_pfm(tmp_path / "d.pfm")
     assert disparity.shape == (24, 40)
-    assert np.array_equal(disparity, sswjax.match(*turned, NDISP))
+    assert np.array_equal(disparity, sswjax.match(*turned, NDISP, params=tiny.params))
     assert np.mean(np.abs(disparity - upright_map) <= 1) > 0.9  # JPEG's loss, not a turn
 
 
-def test_cli_one_turned_image_and_one_upright(tmp_path, run_cli, upright, upright_map):
+def test_cli_one_turned_image_and_one_upright(tmp_path, run_cli, tiny, upright, upright_map):
     left = write_tagged(tmp_path / "left.png", upright[0], 6)
     right = tmp_path / "right.png"
     iio.imwrite(right, upright[1])
-    code, _, err = run_cli(["match", left, right, "--ndisp", NDISP, "-o", tmp_path / "d.pfm"])
+    code, _, err = run_cli(["match", left, right, "--ndisp", NDISP, "-o", tmp_path / "d.pfm",
+                            *tiny.args])
     assert code == 0, err
     assert err == "sswjax: note: LEFT: applied its EXIF orientation (6: rotated 90° clockwise)\n"
     assert np.array_equal(read_pfm(tmp_path / "d.pfm"), upright_map)
@@ -185,13 +189,13 @@ def test_cli_sizes_that_differ_once_turned_name_the_orientation(tmp_path, run_cl
     assert [p.name for p in tmp_path.iterdir()] == ["left.png", "right.png"]
 
 
-def test_cli_folders_match_a_turned_image_as_the_upright_one(tmp_path, run_cli, upright,
+def test_cli_folders_match_a_turned_image_as_the_upright_one(tmp_path, run_cli, tiny, upright,
                                                              upright_map):
     (tmp_path / "L").mkdir()
     (tmp_path / "R").mkdir()
     write_tagged(tmp_path / "L" / "a.png", upright[0], 6)
     iio.imwrite(tmp_path / "R" / "a.png", upright[1])
     code, _, err = run_cli(["match", tmp_path / "L", tmp_path / "R", "--ndisp", NDISP,
-                            "-o", tmp_path / "out"])
+                            "-o", tmp_path / "out", *tiny.args])
     assert code == 0, err
     assert np.array_equal(read_pfm(tmp_path / "out" / "a.pfm"), upright_map)
