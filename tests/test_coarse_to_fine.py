@@ -74,6 +74,7 @@ def test_two_levels_and_confidence_have_the_fine_shape():
     assert abs(float(jnp.median(out.disparity[4:-4, 24:-4])) - 8) <= 1.0
 
 
+@pytest.mark.slow  # the preset on the whole 500 x 741 Motorcycle pair
 def test_fast_on_motorcycle_stays_within_its_measured_error():
     left, right, ground_truth = data.stereo_motorcycle()
     d = sswjax.match(left, right, ndisp=70, params=sswjax.preset("fast"))
