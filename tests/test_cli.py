@@ -475,14 +475,13 @@ def test_the_plan_options_reach_the_call(pair, tmp_path, run_cli, recorded_match
     assert code == 2 and "argument --strip-rows: must be an integer >= 0, got '-1'" in err
 
 
-def test_strips_from_the_command_line_match_as_the_api(pair, tmp_path, run_cli):
+def test_strips_from_the_command_line_match_as_the_api(pair, tmp_path, run_cli, tiny):
     out = tmp_path / "d.pfm"
     code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
-                            "-o", out, "--preset", "paper", "--strip-rows", 16,
-                            "--strip-overlap", 8])
+                            "-o", out, *tiny.args, "--strip-rows", 16, "--strip-overlap", 8])
     assert code == 0, err
     expected = sswjax.match(read_image(pair / "im0.png"), read_image(pair / "im1.png"), NDISP,
-                            params=sswjax.Params(),
+                            params=tiny.params,
                             plan=sswjax.ExecutionPlan(strip_rows=16, strip_overlap=8))
     np.testing.assert_array_equal(read_pfm(out), expected)
 
