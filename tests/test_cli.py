@@ -40,15 +40,17 @@ def pair(tmp_path_factory):
     return folder
 
 
-def test_match_writes_pfm_and_png(pair, tmp_path, capsys, tiny):
-    out = tmp_path / "d.pfm"
-    code = main(["match", str(pair / "im0.png"), str(pair / "im1.png"), "--ndisp", str(NDISP),
-                 "-o", str(out), "--png", str(tmp_path / "d.png"), *tiny.args])
+def test_match_writes_pfm_and_png(small_pair, tmp_path, capsys, tiny):
+    # conftest's small pair: the colour graph of test_cli_inputs_that_must_work below
+    out, files = tmp_path / "d.pfm", small_pair.folder
+    code = main(["match", str(files / "left.png"), str(files / "right.png"), "--ndisp",
+                 str(small_pair.ndisp), "-o", str(out), "--png", str(tmp_path / "d.png"),
+                 *tiny.args])
     assert code == 0
     disparity = read_pfm(out)
-    assert disparity.shape == (40, 64) and disparity.dtype == np.float32
-    assert np.median(disparity[:, 12:]) == pytest.approx(4, abs=0.01)
-    assert iio.imread(tmp_path / "d.png").shape == (40, 64, 3)
+    assert disparity.shape == (24, 40) and disparity.dtype == np.float32
+    assert np.median(disparity[:, 12:]) == pytest.approx(small_pair.shift, abs=0.01)
+    assert iio.imread(tmp_path / "d.png").shape == (24, 40, 3)
     assert "wrote" in capsys.readouterr().out
 
 
@@ -381,17 +383,17 @@ def test_set_echoes_a_number_beyond_float32_as_typed(run_cli, typed, got):
                    f"float32 (the graph's dtype), got {got}\n")
 
 
-def test_set_reaches_the_matcher(pair, tmp_path, run_cli, tiny):
+def test_set_reaches_the_matcher(small_pair, tmp_path, run_cli, tiny):
     # a traced option: the graph of test_match_writes_pfm_and_png, other numbers in it
-    out = tmp_path / "d.pfm"
-    code, _, err = run_cli(["match", pair / "im0.png", pair / "im1.png", "--ndisp", NDISP,
+    out, files, ndisp = tmp_path / "d.pfm", small_pair.folder, small_pair.ndisp
+    code, _, err = run_cli(["match", files / "left.png", files / "right.png", "--ndisp", ndisp,
                             "-o", out, *tiny.args, "--set", "cost.census_weight=0"])
     assert code == 0, err
-    left, right = read_image(pair / "im0.png"), read_image(pair / "im1.png")
-    expected = sswjax.match(left, right, NDISP,
+    left, right = read_image(files / "left.png"), read_image(files / "right.png")
+    expected = sswjax.match(left, right, ndisp,
                             params=tiny.params.replace(**{"cost.census_weight": 0.0}))
     np.testing.assert_array_equal(read_pfm(out), expected)
-    assert not np.array_equal(expected, sswjax.match(left, right, NDISP, params=tiny.params))
+    assert not np.array_equal(expected, sswjax.match(left, right, ndisp, params=tiny.params))
 
 
 def test_params_list_names_every_stage_kind_and_option(run_cli):
