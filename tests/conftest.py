@@ -15,6 +15,12 @@ another one nor this file: what several files share is a fixture here.
 - ``user_environment``: the environment of a process that compiles as a user's does.
 - every test process keeps the persistent compilation cache in a new folder of its own.
 
+Tests that are heavy by nature (a large pair, a preset at several shapes, fresh processes that
+import JAX and compile) are marked ``slow``: ``pytest -m "not slow"`` is the quick loop, the
+README's command runs them too. A test of plumbing (files, folders, options, errors) matches
+with ``tiny`` on ``small_pair`` (24x40, ndisp 8) where it can, so that a worker compiles that
+graph once for many files; a preset is compiled where its maps are what is tested.
+
 The suite compiles with LLVM's optimisation off (:data:`TEST_XLA_FLAGS`), in this process and
 in every process it starts: the tests run small images through many configurations of the
 graph, so compiling is most of their time. XLA's graph is the same; only its machine code is
