@@ -73,11 +73,12 @@ def test_pipeline_invariants_on_random_images(shape, kind, dtype, seed, weights,
         left, right = (np.round(im * scale).astype(dtype) for im in (left, right))
     else:
         left, right = left.astype(dtype), right.astype(dtype)
-    params = Params().replace(
-        tad_weight=weights[0], gradient_weight=weights[1], census_weight=weights[2],
-        tad_truncation=truncations[0], gradient_truncation=truncations[1],
-        segment_weight=segment_weight, lr_tolerance=lr_tolerance,
-    )
+    params = Params().replace(**{
+        "cost.tad_weight": weights[0], "cost.gradient_weight": weights[1],
+        "cost.census_weight": weights[2], "cost.tad_truncation": truncations[0],
+        "cost.gradient_truncation": truncations[1], "aggregation.segment_weight": segment_weight,
+        "checks.tolerance": lr_tolerance,
+    })
     if sum(weights) == 0:  # no cost at all: refused before anything runs
         with pytest.raises(ConfigError, match="are all 0: no pixel has a cost"):
             sswjax.match(left, right, NDISP, params=params)

@@ -48,11 +48,11 @@ def test_kitti_png_into_a_missing_folder(tmp_path):
         write_scaled_disparity(tmp_path / "no" / "d.png", np.ones((2, 2), np.float32))
 
 
-def test_cli_kitti_png(small_pair, tmp_path, run_cli):
+def test_cli_kitti_png(small_pair, tmp_path, run_cli, tiny):
     folder = small_pair.folder
     code, _, stderr = run_cli(["match", folder / "left.png", folder / "right.png", "--ndisp",
                                small_pair.ndisp, "-o", tmp_path / "d.pfm",
-                               "--kitti-png", tmp_path / "000000_10.png"])
+                               "--kitti-png", tmp_path / "000000_10.png", *tiny.args])
     assert code == 0, stderr
     disparity = read_pfm(tmp_path / "d.pfm")
     back = read_scaled_disparity(tmp_path / "000000_10.png", scale=256)

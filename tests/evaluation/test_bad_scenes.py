@@ -106,14 +106,15 @@ def _csv(path):
 # ----------------------------------------------------------------------------- ETH3D
 
 
-def test_eth3d_as_it_unpacks_ndisp_is_the_width_and_every_scene_is_scored(tmp_path, capsys):
+def test_eth3d_as_it_unpacks_ndisp_is_the_width_and_every_scene_is_scored(tmp_path, capsys,
+                                                                           tiny):
     root = write_eth3d_archives(tmp_path)
     scenes = load_scenes(root)
     assert [s.ndisp for s in scenes] == [8, 8, 16]  # the GT rule: 3, 5, 13 + 2 -> 8, 8, 16
     assert [s.left.ndim for s in scenes] == [2, 2, 3]
     out = tmp_path / "out"
     assert main(["evaluate", "--data", root, "--methods", "box", "-o", out, "--ndisp",
-                 "layout"]) == 0  # a real match
+                 "layout", *tiny.args]) == 0  # a real match (conftest's tiny as the base)
     text = capsys.readouterr().out
     assert "Means over 3 ETH3D scenes (no weights; bad-pixel %)" in text
     assert "Disparity range searched (ETH3D): calib.txt's ndisp when below the image width" in text
@@ -303,10 +304,10 @@ def test_evaluate_scene_refuses_a_ground_truth_without_known_pixel(tmp_path, mid
         evaluate_scene(lambda left, right, ndisp: np.zeros(left.shape[:2], np.float32), unknown)
 
 
-def test_eth3d_with_an_estimated_range(tmp_path, capsys):
+def test_eth3d_with_an_estimated_range(tmp_path, capsys, tiny):
     """ETH3D's calib.txt gives no range (its ndisp is the width): by default the SSW methods
-    search what the pair's coarse pass estimates (--ndisp auto), a real match (of a cheap
-    method, the paper's without superpixels: the estimate's coarse pass is the same for all)."""
+    search what the pair's coarse pass estimates (--ndisp auto), a real match (of conftest's
+    ``tiny`` configuration: the estimate's coarse pass is the same for all)."""
     images = tmp_path / "ETH3D" / "two_view_training" / "terrace_1s"
     truth = tmp_path / "ETH3D" / "two_view_training_gt" / "terrace_1s"
     images.mkdir(parents=True)
@@ -323,8 +324,7 @@ def test_eth3d_with_an_estimated_range(tmp_path, capsys):
     write_pfm(truth / "disp0GT.pfm", gt)
     iio.imwrite(truth / "mask0nocc.png", np.where(np.isfinite(gt), 255, 0).astype(np.uint8))
     root = tmp_path / "ETH3D"
-    assert main(["--no-cache", "evaluate", "--data", root, "--methods", "ssw", "--preset", "paper",
-                 "--set", "segments=none"]) == 0
+    assert main(["--no-cache", "evaluate", "--data", root, "--methods", "ssw", *tiny.args]) == 0
     out = capsys.readouterr().out
     assert "estimated from each pair (--ndisp auto, the default for ETH3D" in out
     row = [line for line in out.splitlines() if "| terrace_1s |" in line][0]

@@ -65,9 +65,10 @@ def tiny_middeval3(tmp_path):
     return tmp_path
 
 
-def test_evaluate_writes_submission_layout_csv_and_tables(tiny_middeval3, tmp_path, capsys):
+def test_evaluate_writes_submission_layout_csv_and_tables(tiny_middeval3, tmp_path, capsys, tiny):
     out = tmp_path / "out"
-    code = main(["evaluate", "--data", str(tiny_middeval3), "--methods", "ssw,box", "-o", str(out)])
+    code = main(["evaluate", "--data", str(tiny_middeval3), "--methods", "ssw,box", "-o", str(out),
+                 *tiny.args])
     assert code == 0
     for method, tag in (("ssw", "SSW"), ("box", "BOX")):
         for scene, shift in (("Teddy", 3), ("Vintage", 5)):
@@ -107,11 +108,11 @@ def test_sgbm_peer_is_dense_and_recovers_a_shift():
     assert np.median(disparity[:, 24:]) == pytest.approx(6, abs=0.25)
 
 
-def test_evaluate_figure(tiny_middeval3, tmp_path):
+def test_evaluate_figure(tiny_middeval3, tmp_path, tiny):
     pytest.importorskip("matplotlib")
     out = tmp_path / "out"
     assert main(["evaluate", "--data", str(tiny_middeval3), "--methods", "box", "-o", str(out),
-                 "--figure"]) == 0
+                 "--figure", *tiny.args]) == 0
     image = iio.imread(out / "comparison.png")
     assert image.ndim == 3 and image.shape[0] > 50
 
@@ -128,12 +129,11 @@ def test_tables_without_masks_show_all_only():
 
 
 def test_evaluate_bucket_runs_ssw_scenes_through_the_sharded_grouped_path(tiny_middeval3, tmp_path,
-                                                                          monkeypatch):
+                                                                          monkeypatch, tiny):
     import sswjax
     import sswjax.evaluation.methods
 
-    params = sswjax.Params().replace(n_segments=16)
-    sswjax.save_params(tmp_path / "tiny.json", params)
+    sswjax.save_params(tmp_path / "tiny.json", tiny.params)
     batches = []
 
     def spy(pairs, ndisps, *args, **kwargs):
