@@ -1,5 +1,6 @@
 """The vertical alignment (``params.alignment``): a pair whose right image is moved vertically by
-a known affine offset has it measured back, in the graph and in strips, and matches better."""
+a known affine offset has it measured back (:func:`sswjax.graph.align_right`, the step before
+the method), once for the whole pair whatever the plan, and matches better."""
 
 import jax
 import jax.numpy as jnp
@@ -9,12 +10,13 @@ from scipy.ndimage import gaussian_filter, map_coordinates
 
 import sswjax
 from sswjax import ExecutionPlan
+from sswjax.api.batch import match_batch
 from sswjax.config import LeftRightCheck
-from sswjax.graph.alignment import align_right, alignment_coefficients, halved_levels
-from sswjax.graph.match import carries_paths, match_maps
-from sswjax.runtime.aligned import aligned_right, first_pass_plan
-from sswjax.runtime.execute import execute
-from sswjax.runtime.memory import STRIP_HEIGHTS, estimate_peak_bytes
+from sswjax.graph import align_right, ssw_disparity
+from sswjax.graph.alignment import alignment_coefficients, halved_levels
+from sswjax.graph.match import carries_paths
+from sswjax.runtime.execute import align, graph_call
+from sswjax.runtime.memory import MemoryEstimateError, check_memory, estimate_peak_bytes
 from sswjax.stages.alignment import tile_offsets
 
 HEIGHT, WIDTH, NDISP = 96, 128, 16
@@ -119,12 +121,7 @@ def test_the_grid_follows_a_bent_offset_the_plane_cannot():
 def test_the_graph_aligns_then_matches_better(moved_pair):
     left, right, disparity = moved_pair
     params = _params()
-
-    def match(*args, **kwargs):
-        return match_maps(*args, chunk=4, **kwargs)
-
-    moved, coefficients = jax.jit(lambda a, b: align_right(a, b, params, NDISP, None, match))(
-        jnp.asarray(left), jnp.asarray(right))
+    moved, coefficients = align_right(jnp.asarray(left), jnp.asarray(right), params, ndisp=NDISP)
     assert _largest_error(params, coefficients) < 0.12
     aligned = np.asarray(sswjax.match(left, right, NDISP, params=params))
     plain = np.asarray(sswjax.match(left, right, NDISP,
@@ -141,71 +138,63 @@ def test_the_graph_aligns_then_matches_better(moved_pair):
 def test_strips_align_once_on_the_whole_pair(moved_pair):
     left, right, _ = moved_pair
     params = _params()
-    assert not carries_paths(params)
+    assert carries_paths(params)  # the method's: the alignment runs before it
     whole = sswjax.match(left, right, NDISP, params=params)
     strips = sswjax.match(left, right, NDISP, params=params,
                           plan=ExecutionPlan(strip_rows=32, strip_overlap=16))
-    # The first pass runs on the whole halved pair and the method's strips carry its paths:
-    # the whole pair's map, but for the right image moved apart from the graph (the same
-    # computation compiled apart, under 1e-6 off), which moves 1.7 % of these disparities by
-    # at most 0.025 px.
+    # The right image is moved once, on the whole pair, and the method's strips carry its
+    # paths: the whole pair's map, but for the right image moved apart from the method's
+    # program (the same computation compiled apart, under 1e-6 off), which moves 1.7 % of these
+    # disparities by at most 0.025 px.
     assert np.abs(strips - whole).max() < 0.1
 
 
-def test_tiles_align_on_the_whole_pairs_first_pass():
-    """Under tiles that leave room for it, the first pass runs on the whole halved pair: the
-    right image is moved as the graph moves it. (In the tiles themselves, which cut its paths,
-    the first pass of this noisy pair moved it by up to 9e-4.)"""
+def test_tiles_run_the_method_on_the_pair_aligned_once():
+    """Under tiles, the right image is moved once on the whole pair (:func:`align`, the graph
+    :func:`align_right`), then the method's tiles run on it: the maps of the method's tiles on
+    that pair, the alignment left out."""
     left, right, _ = _moved_pair()
-    noise = np.random.default_rng(3)
-    left, right = (np.clip(image + noise.normal(0, 0.05, image.shape), 0, 1).astype(np.float32)
-                   for image in (left, right))
     params = _params()
-    tiles = ExecutionPlan(tile=16, strip_overlap=8)
-    small = halved_levels(jnp.asarray(left), jnp.asarray(right), NDISP, None, 1)
-    assert first_pass_plan(left.shape, small[0].shape, ndisp=NDISP, small_ndisp=small[2],
-                           params=params, plan=tiles) == tiles._replace(tile=0)
-
-    def match(*args, **kwargs):
-        return match_maps(*args, chunk=4, **kwargs)
-
-    moved, _ = jax.jit(lambda a, b: align_right(a, b, params, NDISP, None, match))(
-        jnp.asarray(left), jnp.asarray(right))
-    np.testing.assert_allclose(
-        aligned_right(execute, left, right, params=params, ndisp=NDISP, plan=tiles), moved,
-        atol=1e-5)
+    tiles = ExecutionPlan(tile=48, strip_overlap=8)
+    padded_left, padded_right, call = graph_call(left, right, NDISP, tiles)
+    moved = align(padded_left, padded_right, params=params, call=call)
+    np.testing.assert_array_equal(
+        moved, np.asarray(align_right(jnp.asarray(left), jnp.asarray(right), params,
+                                      ndisp=NDISP)[0]))
+    np.testing.assert_array_equal(
+        sswjax.match(left, right, NDISP, params=params, plan=tiles),
+        sswjax.match(left, moved, NDISP, params=params.replace(alignment=None), plan=tiles))
 
 
-@pytest.mark.parametrize("plan, first", [
-    # The whole halved pair needs more than these tiles: its carried strips, the tiles' collar.
-    (ExecutionPlan(tile=256), ExecutionPlan(strip_rows=512)),
-    (ExecutionPlan(tile=128, strip_overlap=48), ExecutionPlan(strip_rows=384, strip_overlap=48)),
-    # Paths not carried: no strips fit, the tiles' own plan.
-    (ExecutionPlan(tile=256, carry_paths=False), ExecutionPlan(tile=256, carry_paths=False)),
-    # Tiles of 1024 leave room for the whole halved pair.
-    (ExecutionPlan(tile=1024), ExecutionPlan()),
-])
-def test_the_first_pass_plan_fits_in_the_methods(plan, first):
-    """On a 4000 x 3000 pair with 256 disparities: the first of the whole halved pair, then its
-    carried strips, whose estimate is no more than the method's under its plan."""
+def test_the_method_refuses_the_alignment_and_composes_after_it_under_vmap(moved_pair):
+    left, right, _ = moved_pair
+    params = _params()
+    with pytest.raises(ValueError, match="params.alignment is a step before the method"):
+        ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=NDISP)
+
+    # match_batch composes them under jax.vmap as ssw_disparity's docstring shows.
+    batched = match_batch(left[None], right[None], NDISP, params=params)
+    np.testing.assert_allclose(batched[0], sswjax.match(left, right, NDISP, params=params),
+                               atol=0.05)
+
+
+def test_the_first_pass_is_estimated_as_a_call_of_its_own():
+    """The memory model estimates the alignment's first pass (the pair halved, whole) like any
+    call: an aligned call needs the larger of it and the method; a limit the method's strips
+    fit but the first pass does not is refused in one line that says so."""
     params = sswjax.preset("accurate")
-    shape, small, ndisp, small_ndisp = (3000, 4000, 3), (1500, 2000, 3), 256, 129
-    chosen = first_pass_plan(shape, small, ndisp=ndisp, small_ndisp=small_ndisp, params=params,
-                             plan=plan)
-    assert chosen == first
-    first_params = params.alignment.first_pass(params)
-
-    def estimate(trial):
-        return estimate_peak_bytes(1500, 2000, small_ndisp, params=first_params, plan=trial)
-
-    bound = estimate_peak_bytes(3000, 4000, ndisp, params=params, plan=plan)
-    if chosen != plan:
-        assert estimate(chosen) <= bound
-    # Every plan before it in the order does not fit.
-    earlier = [plan._replace(tile=0)] if chosen.tile or chosen.strip_rows else []
-    earlier += [chosen._replace(strip_rows=rows) for rows in STRIP_HEIGHTS
-                if rows > chosen.strip_rows > 0]
-    assert all(estimate(trial) > bound for trial in earlier)
+    first = params.alignment.first_pass(params)
+    method = estimate_peak_bytes(3000, 4000, 256, params=params.replace(alignment=None),
+                                 plan=ExecutionPlan(strip_rows=64))
+    alone = estimate_peak_bytes(1500, 2000, 129, params=first)
+    aligned = estimate_peak_bytes(3000, 4000, 256, params=params,
+                                  plan=ExecutionPlan(strip_rows=64))
+    assert alone > method and aligned >= alone
+    assert estimate_peak_bytes(3000, 4000, 256, params=params) == estimate_peak_bytes(
+        3000, 4000, 256, params=params.replace(alignment=None))  # the method's is larger
+    with pytest.raises(MemoryEstimateError, match="the vertical alignment's first pass"):
+        check_memory(3000, 4000, 256, params=params, plan=ExecutionPlan(strip_rows=64),
+                     limit=(method + alone) / 2)
 
 
 def test_an_aligned_pair_is_unchanged_when_nothing_is_off():
@@ -271,9 +260,7 @@ def test_the_first_pass_runs_under_the_alignments_scope():
     # are the alignment's time, not the method's (docs/limits.md). Only the first pass runs
     # paths inside the alignment, so before its stages were nested there, none were found.
     left, right, _ = _moved_pair(160, 200)
-    text = sswjax.graph.ssw_disparity.lower(
-        jnp.asarray(left), jnp.asarray(right), sswjax.preset("accurate"),
-        ndisp=NDISP).as_text(debug_info=True)
+    text = align_right.lower(jnp.asarray(left), jnp.asarray(right), sswjax.preset("accurate"),
+                             ndisp=NDISP).as_text(debug_info=True)
     assert "/alignment/optimization/" in text
     assert "/alignment/cost/" in text
-    assert "/optimization/" in text.replace("/alignment/optimization/", "")

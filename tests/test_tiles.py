@@ -84,8 +84,9 @@ def test_strips_are_the_one_column_tiling_as_before(rows, overlap):
         return np.cumsum(np.asarray(left)[..., 0], axis=0) + np.asarray(right)[..., 0]
 
     expected = _old_strips(run, image, image, rows=rows, overlap=overlap)
-    np.testing.assert_array_equal(in_tiles(run, image, image, Tiling(rows, 0, overlap, 6)),
-                                  expected)
+    np.testing.assert_array_equal(
+        in_tiles(lambda window, *pair: run(*pair), image, image, Tiling(rows, 0, overlap, 6)),
+        expected)
 
 
 def test_each_window_of_a_padded_pair_is_told_how_much_of_it_is_the_pair():
@@ -115,15 +116,14 @@ def test_plans_with_tiles_are_checked():
         check_plan(ExecutionPlan(tile=64, strip_rows=32))
     with pytest.raises(ValueError, match="plan.tile must be an integer in"):
         check_plan(ExecutionPlan(tile=-1))
-    with pytest.raises(TypeError, match="plan.engine must be None or have execute, session an"):
+    with pytest.raises(TypeError, match="plan.engine must be None or have an execute method"):
         check_plan(ExecutionPlan(engine="dask"))
 
-    class ExecuteOnly:  # an engine without the session and fit an aligned pair needs
+    class ExecuteOnly:  # an engine: what runs a call's windows
         def execute(self, *args, **kwargs):
             raise AssertionError("not called")
 
-    with pytest.raises(TypeError, match="got ExecuteOnly"):
-        check_plan(ExecutionPlan(engine=ExecuteOnly()))
+    assert check_plan(ExecutionPlan(engine=ExecuteOnly())).engine is not None
 
 
 # The memory guard's choices below were measured (docs/cluster.md) on accurate before its

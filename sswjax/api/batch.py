@@ -26,7 +26,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from sswjax._checks import check_rank, check_same_shape
 from sswjax.api.images import checked_pair
 from sswjax.config import Params, check_params, default_params
-from sswjax.graph import DEFAULT_CHUNK, ssw_disparity
+from sswjax.graph import DEFAULT_CHUNK, align_right, ssw_disparity
 from sswjax.runtime.buckets import ShapeBuckets, bucket_shape, pad_to_bucket
 from sswjax.runtime.devices import BATCH_AXIS, device_mesh, pad_batch
 from sswjax.runtime.executables import bounded
@@ -35,10 +35,14 @@ __all__ = ["iter_match_scenes", "match_batch", "match_scenes"]
 
 
 def _vmapped(lefts, rights, valid_ndisps, valid_shapes, params, *, ndisp, chunk):
-    """:func:`~sswjax.graph.ssw_disparity` of each pair of a batch (``jax.vmap``)."""
+    """:func:`~sswjax.graph.ssw_disparity` of each pair of a batch (``jax.vmap``), its right
+    image aligned first (:func:`~sswjax.graph.align_right`) when ``params.alignment``."""
     def one(left, right, valid_ndisp, valid_shape):
-        return ssw_disparity(left, right, params, ndisp=ndisp, valid_ndisp=valid_ndisp,
-                             chunk=chunk, valid_shape=valid_shape)
+        call = {"ndisp": ndisp, "valid_ndisp": valid_ndisp, "chunk": chunk,
+                "valid_shape": valid_shape}
+        if params.alignment is not None:
+            right, _ = align_right(left, right, params, **call)
+        return ssw_disparity(left, right, params.replace(alignment=None), **call)
 
     return jax.vmap(one)(lefts, rights, valid_ndisps, valid_shapes)
 

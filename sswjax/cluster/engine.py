@@ -9,7 +9,8 @@ carry their crops (no scattered data), so the scheduler can run a task again on 
 worker when its worker dies; a bounded number of them is in flight at a time, so the
 scheduler holds a few windows, not the image. Row strips whose semi-global paths are
 carried from strip to strip (:mod:`sswjax.runtime.carried`) wait for each other: their chain
-is one task. Before any task, every window is estimated
+is one task. An aligned pair's right image is moved first, in this process (one call on the
+whole pair), and the engine runs the method's call. Before any task, every window is estimated
 against the workers' memory limit (:func:`sswjax.runtime.memory.worker_peak_bytes`): a plan
 without tiles gets the tiles that fit a worker, and a tiling that does not fit is refused.
 
@@ -29,9 +30,7 @@ from sswjax._files import first_line
 from sswjax.api.match import match, match_with_confidence
 from sswjax.cluster.tasks import graph_name, match_carried, match_window
 from sswjax.cluster.workers import require_distributed, worker_memory
-from sswjax.runtime.buckets import bucket_shape
 from sswjax.runtime.carried import carried_strips
-from sswjax.runtime.execute import graph_call
 from sswjax.runtime.memory import plan_for_memory
 from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align
 from sswjax.runtime.tiles import assemble, tile_windows
@@ -88,50 +87,21 @@ class DaskEngine:
             return contextlib.nullcontext(self.client)
         return self.connect()
 
-    @contextlib.contextmanager
-    def session(self):
-        """This engine for every call of one pair on one cluster (an aligned pair's first pass,
-        then its windows): itself when it holds a client; else an engine of the same settings
-        holding the client that ``connect`` gives for the block, so that the cluster it starts
-        is started once per pair, not once per call."""
-        if self.client is not None:
-            yield self
-            return
-        with self.connect() as client:
-            yield DaskEngine(client, cache=self.cache, retries=self.retries,
-                             progress=self.progress, in_flight=self.in_flight,
-                             check_memory=self.check_memory, memory_limit=self.memory_limit)
-
-    def fit(self, left, right, *, params, ndisp: int, plan: ExecutionPlan) -> ExecutionPlan:
-        """The plan (without its engine) whose windows :meth:`execute` would run as tasks for
-        these arguments: the windows that fit a worker. Raises the memory guard's
-        ``MemoryEstimateError`` when the plan's own windows do not, before any task: an
-        aligned pair asks it before its first pass runs."""
-        height, width, channels = left.shape
-        call_ndisp = int(ndisp)
-        if plan.buckets is not None:
-            height, width, call_ndisp = bucket_shape(height, width, call_ndisp, plan.buckets)
-        with self._session() as client:
-            return self._fitted(client, (height, width, channels), call_ndisp, params, plan)
-
-    def execute(self, graph, left, right, *, params, ndisp: int, plan: ExecutionPlan):
-        """:func:`sswjax.runtime.execute.execute` with each window a task (its arguments and
-        returns the same); ``plan`` without its engine."""
+    def execute(self, graph, left, right, *, params, call: dict, plan: ExecutionPlan):
+        """:func:`sswjax.runtime.execute.run_windows` with each window a task (its arguments
+        and returns the same: the method's call on the pair padded to its bucket, and aligned,
+        ``call`` the keyword arguments of :func:`~sswjax.runtime.execute.graph_call`; ``plan``
+        without its engine). The windows are fitted to the workers' memory, or refused, before
+        any task runs."""
         name, keywords = graph_name(graph)
-        height, width = left.shape[:2]
-        left, right, call = graph_call(left, right, ndisp, plan)
         with self._session() as client:
             plan = self._fitted(client, left.shape, call["ndisp"], params, plan)
             tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
             if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
-                maps = self._chain(client, name, keywords, left, right, tiling, params, call)
-            else:
-                windows = tile_windows(left.shape[0], left.shape[1], tiling)
-                pieces = self._pieces(client, name, keywords, left, right, windows, params, call)
-                maps = assemble(left.shape[0], left.shape[1], pieces)
-        if isinstance(maps, tuple):
-            return type(maps)(*(m[:height, :width] for m in maps))
-        return maps[:height, :width]
+                return self._chain(client, name, keywords, left, right, tiling, params, call)
+            windows = tile_windows(left.shape[0], left.shape[1], tiling)
+            pieces = self._pieces(client, name, keywords, left, right, windows, params, call)
+            return assemble(left.shape[0], left.shape[1], pieces)
 
     def _fitted(self, client, shape, ndisp, params, plan):
         """``plan`` (of the padded pair: no buckets) fitted to the workers' memory limit."""

@@ -26,7 +26,7 @@ from sswjax.cluster.workers import prepare_worker
 from sswjax.config import Params
 from sswjax.data.io import read_image, write_pfm
 from sswjax.graph import ssw_cues, ssw_disparity, ssw_outputs
-from sswjax.runtime.carried import in_carried_strips
+from sswjax.runtime.carried import in_carried_strips, unwrapped
 from sswjax.runtime.executables import bounded
 from sswjax.runtime.execute import bind_graph
 from sswjax.runtime.memory import MemoryEstimateError
@@ -98,12 +98,9 @@ def graph_name(graph) -> tuple[str, dict]:
     >>> graph_name(functools.partial(ssw_outputs, measure="pkrn"))
     ('ssw_outputs', {'measure': 'pkrn'})
     """
-    keywords = {}
-    if isinstance(graph, functools.partial) and not graph.args:
-        keywords, graph = dict(graph.keywords), graph.func
-    function = getattr(graph, "__wrapped__", graph)
+    function, keywords = unwrapped(graph)
     for name, (known, _) in GRAPHS.items():
-        if function is getattr(known, "__wrapped__", known):
+        if function is unwrapped(known)[0]:
             return name, keywords
     raise ValueError(f"a Dask engine runs the graphs of sswjax.graph ({', '.join(GRAPHS)}), "
                      f"not {getattr(function, '__name__', function)!r}")

@@ -1,5 +1,6 @@
-"""The vertical alignment in the graph: a first pass on the pair halved, the offset measured on
-the cost at its map at that level, the full-resolution right image moved.
+"""The vertical alignment, a step before the method: a first pass on the pair halved, the offset
+measured on the cost at its map at that level, the full-resolution right image moved
+(:func:`align_right`); the method then matches the left image with the moved right one.
 
 Array conventions: images float32 ``(H, W, C)`` in [0, 1]; maps float32 ``(H, W)`` in pixels;
 coefficients float32 ``(3,)``, or ``(3 + tiles * tiles,)`` with the 'grid' model
@@ -8,13 +9,14 @@ coefficients float32 ``(3,)``, or ``(3 + tiles * tiles,)`` with the 'grid' model
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import functools
 
 import jax
 import jax.numpy as jnp
 
 from sswjax.config import Params
 from sswjax.graph.coarse import halved_pair
+from sswjax.graph.match import DEFAULT_CHUNK, check_pair, match_maps
 from sswjax.graph.padding import padding_as_edge
 from sswjax.graph.scopes import Stage, scope
 from sswjax.graph.volume import cost_features
@@ -96,29 +98,59 @@ def halved_levels(left: jax.Array, right: jax.Array, ndisp: int, valid_ndisp, le
     return level
 
 
-def align_right(left: jax.Array, right: jax.Array, params: Params, ndisp: int, valid_ndisp,
-                match: Callable, *, valid_shape=None) -> tuple[jax.Array, jax.Array]:
-    """The right image with its rows moved onto the left's, and the model's coefficients.
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def align_right(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
+                valid_ndisp=None, chunk: int = DEFAULT_CHUNK,
+                valid_shape=None) -> tuple[jax.Array, jax.Array]:
+    """The right image with its rows moved onto the left's, and the model's coefficients: the
+    step ``params.alignment`` runs before the method, as one jitted pure function.
 
-    ``match(left, right, params, ndisp, valid_ndisp, valid_shape=) -> (map, cues, carried)``
-    runs the first pass (``params.alignment.first_pass(params)``) on the pair halved
-    ``params.alignment.levels`` times; its map and the pixels its checks rejected give
-    :func:`alignment_coefficients` at that level.
+    The first pass (``params.alignment.first_pass(params)``, :func:`~sswjax.graph.match_maps`)
+    runs on the pair halved ``params.alignment.levels`` times; its map and the pixels its
+    checks rejected give :func:`alignment_coefficients` at that level, and the right image is
+    moved by them at full resolution. A pair too small for a tile to be measured
+    (:meth:`~sswjax.config.VerticalAlignment.measurable`) has an offset of 0: its right image
+    comes back as it is, the coefficients 0, and no first pass is compiled. The method then
+    runs on ``(left, moved)`` with ``params.replace(alignment=None)``; under ``jax.vmap``::
+
+        def aligned_disparity(left, right):
+            moved, _ = align_right(left, right, params, ndisp=n)
+            return ssw_disparity(left, moved, params.replace(alignment=None), ndisp=n)
+
+        jax.vmap(aligned_disparity)(lefts, rights)
+
+    Parameters
+    ----------
+    left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
+    params : Params
+        With ``alignment`` set.
+    ndisp, valid_ndisp, chunk, valid_shape
+        As for :func:`~sswjax.graph.ssw_disparity` (``ndisp`` and ``chunk`` static).
 
     Returns
     -------
     (float32 (H, W, C), float32 (3,) or (3 + tiles * tiles,))
+        The moved right image and the coefficients
+        (:meth:`~sswjax.config.VerticalAlignment.coefficients`).
     """
+    check_pair(left, right, ndisp)
     alignment = params.alignment
+    if alignment is None:
+        raise ValueError("align_right needs params.alignment (a VerticalAlignment)")
+    if not alignment.measurable(left.shape[:2]):
+        size = 3 if alignment.model == "plane" else 3 + alignment.tiles ** 2
+        return right, jnp.zeros((size,), jnp.float32)
     # The whole stage under one scope, the first pass's own stages nested in it: a profile
     # that counts each operation under its outermost stage counts the first pass here.
     with scope(Stage.ALIGNMENT):
         small_left, small_right, small_ndisp, small_valid, small_shape = halved_levels(
             left, right, ndisp, valid_ndisp, alignment.levels, valid_shape=valid_shape)
-        disparity, cues, _ = match(small_left, small_right, alignment.first_pass(params),
-                                   small_ndisp, small_valid, valid_shape=small_shape)
+        disparity, cues, _ = match_maps(small_left, small_right, alignment.first_pass(params),
+                                        small_ndisp, small_valid, chunk,
+                                        valid_shape=small_shape)
         coefficients = alignment_coefficients(
             small_left, small_right, params, padding_as_edge(disparity, small_shape),
             cues.lr_failed, limit=small_ndisp if small_valid is None else small_valid,
             scale=2 ** alignment.levels, valid_shape=small_shape)
         return alignment.apply(right, coefficients, size=valid_shape), coefficients
+

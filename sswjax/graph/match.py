@@ -17,7 +17,6 @@ import jax
 
 from sswjax._checks import check_floating, check_positive_int, check_rank, check_same_shape
 from sswjax.config import Params
-from sswjax.graph.alignment import align_right
 from sswjax.graph.band import match_band
 from sswjax.graph.coarse import match_coarse_to_fine
 from sswjax.graph.refine import refine
@@ -29,7 +28,8 @@ from sswjax.stages.confidence import DEFAULT_MEASURE, ConfidenceCues, ambiguous,
 from sswjax.stages.paths import Seeds
 
 __all__ = ["DEFAULT_CHUNK", "SSWOutputs", "aggregated_cost", "carries_paths", "check_carried",
-           "check_pair", "match_maps", "ssw_carried", "ssw_cues", "ssw_disparity", "ssw_outputs"]
+           "check_pair", "check_unaligned", "match_maps", "ssw_carried", "ssw_cues",
+           "ssw_disparity", "ssw_disparity_seeded", "ssw_outputs", "ssw_outputs_seeded"]
 
 DEFAULT_CHUNK = 4
 """Disparities per block of the volume's scans: memory for about ``3 K`` slices instead of the
@@ -75,8 +75,8 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
     (:class:`~sswjax.stages.paths.Seeds`), the paths' states for the neighbouring windows
     (else None).
 
-    With ``params.alignment``, a first pass on the pair halved measures the right image's
-    vertical offset and the method runs on the pair aligned (:mod:`sswjax.graph.alignment`).
+    The pair is matched as it is: ``params.alignment`` is a step before the method
+    (:func:`sswjax.graph.alignment.align_right`), refused here (:func:`check_unaligned`).
     Three ways through the volume: coarse-to-fine recurses on the halved pair; with an
     optimiser the volume is stored, optimised and folded; without one each block is folded
     as soon as it is aggregated. With a band, the method then runs again over a few
@@ -87,14 +87,8 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
     if seeds is not None:
         check_carried(params)
     limit = ndisp if valid_ndisp is None else valid_ndisp
+    check_unaligned(params)
     scene = carried = None
-    if params.alignment is not None and params.alignment.measurable(left.shape[:2]):
-        # The first pass, the offset measured, the right image moved: then the method.
-        right, _ = align_right(left, right, params, ndisp, valid_ndisp,
-                               functools.partial(match_maps, chunk=chunk),
-                               valid_shape=valid_shape)
-    # Aligned, or too small for a tile to be measured (the offset would be 0).
-    params = params.replace(alignment=None)
     if params.coarse is not None:
         inner = functools.partial(match_maps, chunk=chunk)
         # The smoothing acts once, on the full-resolution map; the band at every level that
@@ -127,12 +121,20 @@ def match_maps(left, right, params: Params, ndisp: int, valid_ndisp, chunk: int,
     return disparity, cues, carried
 
 
+def check_unaligned(params: Params) -> None:
+    """Raise ``ValueError`` (one line) when ``params`` set the vertical alignment, which runs
+    before the method, not in it."""
+    if params.alignment is not None:
+        raise ValueError("params.alignment is a step before the method: moved, _ = "
+                         "align_right(left, right, params, ndisp=N), then the method on "
+                         "(left, moved) with params.replace(alignment=None)")
+
+
 def carries_paths(params: Params) -> bool:
     """Whether windows of ``params``' method can carry the semi-global paths along the rows
     from one to the next (:mod:`sswjax.stages.paths`): a full-resolution volume (no
-    coarse-to-fine, no band, no alignment: its first pass needs the whole pair) optimised by
-    an optimiser that ``carries_paths``."""
-    return (params.alignment is None and params.coarse is None and params.band is None
+    coarse-to-fine, no band) optimised by an optimiser that ``carries_paths``."""
+    return (params.coarse is None and params.band is None
             and params.optimizer is not None and params.optimizer.carries_paths)
 
 
@@ -140,24 +142,32 @@ def check_carried(params: Params) -> None:
     """Raise ``ValueError`` (one line) unless :func:`carries_paths`."""
     if not carries_paths(params):
         raise ValueError("seeds carry the semi-global paths of a full-resolution volume: this "
-                         "method has no such optimiser, or runs coarse-to-fine, in a band or "
-                         "after a vertical alignment")
+                         "method has no such optimiser, or runs coarse-to-fine or in a band")
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
 def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
-                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None, seeds=None):
+                  valid_ndisp=None, chunk: int = DEFAULT_CHUNK, valid_shape=None) -> jax.Array:
     """The whole SSW method as one jitted pure function.
 
     The static options of ``params`` and its choice of stages are pytree structure, so
     changing one (or the image size, ``ndisp`` or ``chunk``) recompiles; its traced options
-    are traced. ``jax.vmap`` batches it over pairs of one size:
-    ``jax.vmap(lambda l, r: ssw_disparity(l, r, params, ndisp=n))(lefts, rights)``.
+    are traced. The vertical alignment (``params.alignment``, the ``accurate`` preset's) is a
+    step before the method, :func:`~sswjax.graph.align_right`: the method refuses it, and runs
+    on the aligned pair with ``params.replace(alignment=None)``. ``jax.vmap`` batches both
+    over pairs of one size::
+
+        def disparity(left, right):
+            moved, _ = align_right(left, right, params, ndisp=n)
+            return ssw_disparity(left, moved, params.replace(alignment=None), ndisp=n)
+
+        jax.vmap(disparity)(lefts, rights)
 
     Parameters
     ----------
     left, right : float32 (H, W, C), C in {1, 3}, values in [0, 1]
     params : Params
+        Without ``alignment``.
     ndisp : int, 1 <= ndisp < W
         Size of the disparity volume (static: a new value recompiles).
     valid_ndisp : int32 scalar, optional
@@ -170,19 +180,30 @@ def ssw_disparity(left: jax.Array, right: jax.Array, params: Params, *, ndisp: i
         Traced height and width of the pair within images padded to a shape bucket (default:
         the whole images): the padding holds no evidence (its matching cost is the border
         value at every disparity).
-    seeds : Seeds, optional
-        The pair is a window of row strips: its semi-global paths along the rows enter from
-        the windows above and below (:mod:`sswjax.stages.paths`, :func:`carries_paths`).
 
     Returns
     -------
-    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1];
-    with ``seeds``, the pair ``(disparity, carried)``, ``carried`` the :class:`Seeds` the
-    paths left for the neighbours.
+    float32 (H, W), dense disparities of the left view in pixels, in [0, valid_ndisp - 1].
+    """
+    return match_maps(left, right, params, ndisp, valid_ndisp, chunk,
+                      valid_shape=valid_shape)[0]
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
+def ssw_disparity_seeded(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
+                         seeds: Seeds, valid_ndisp=None, chunk: int = DEFAULT_CHUNK,
+                         valid_shape=None) -> tuple[jax.Array, Seeds]:
+    """:func:`ssw_disparity` of a window of row strips whose semi-global paths along the rows
+    enter from the windows above and below (``seeds``, :mod:`sswjax.stages.paths`,
+    :func:`carries_paths`), and the :class:`Seeds` its paths leave for them.
+
+    Returns
+    -------
+    (float32 (H, W), Seeds)
     """
     disparity, _, carried = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
                                        valid_shape=valid_shape, seeds=seeds)
-    return disparity if seeds is None else (disparity, carried)
+    return disparity, carried
 
 
 class SSWOutputs(NamedTuple):
@@ -202,10 +223,16 @@ jax.export.register_namedtuple_serialization(SSWOutputs, serialized_name="sswjax
 jax.export.register_namedtuple_serialization(Seeds, serialized_name="sswjax.Seeds")
 
 
+def _outputs(disparity: jax.Array, cues: ConfidenceCues, measure: str) -> SSWOutputs:
+    """The map and what :func:`ssw_outputs` gives besides it, from the cues."""
+    return SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed,
+                      ambiguous(cues))
+
+
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
 def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
                 valid_ndisp=None, chunk: int = DEFAULT_CHUNK, measure: str = DEFAULT_MEASURE,
-                valid_shape=None, seeds=None):
+                valid_shape=None) -> SSWOutputs:
     """:func:`ssw_disparity` with the confidence of each pixel, in one jitted graph.
 
     The same graph as :func:`ssw_disparity` (which keeps only the map; ``jit`` drops the rest)
@@ -213,7 +240,7 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
 
     Parameters
     ----------
-    left, right, params, ndisp, valid_ndisp, chunk, valid_shape, seeds
+    left, right, params, ndisp, valid_ndisp, chunk, valid_shape
         As for :func:`ssw_disparity`.
     measure : str
         A key of :data:`sswjax.stages.confidence.MEASURES` (static).
@@ -222,7 +249,7 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     -------
     SSWOutputs
         float32 (H, W) disparity, float32 (H, W) confidence, bool (H, W) lr_failed, bool
-        (H, W) ambiguous; with ``seeds``, the pair ``(outputs, carried)``.
+        (H, W) ambiguous.
 
     Examples
     --------
@@ -232,11 +259,26 @@ def ssw_outputs(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     >>> out.confidence.shape, str(out.confidence.dtype)
     ((40, 48), 'float32')
     """
+    disparity, cues, _ = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
+                                    valid_shape=valid_shape)
+    return _outputs(disparity, cues, measure)
+
+
+@functools.partial(jax.jit, static_argnames=("ndisp", "chunk", "measure"))
+def ssw_outputs_seeded(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int,
+                       seeds: Seeds, valid_ndisp=None, chunk: int = DEFAULT_CHUNK,
+                       measure: str = DEFAULT_MEASURE,
+                       valid_shape=None) -> tuple[SSWOutputs, Seeds]:
+    """:func:`ssw_outputs` of a window of row strips, with ``seeds`` as for
+    :func:`ssw_disparity_seeded`.
+
+    Returns
+    -------
+    (SSWOutputs, Seeds)
+    """
     disparity, cues, carried = match_maps(left, right, params, ndisp, valid_ndisp, chunk,
                                           valid_shape=valid_shape, seeds=seeds)
-    outputs = SSWOutputs(disparity, confidence(cues, disparity, measure=measure), cues.lr_failed,
-                         ambiguous(cues))
-    return outputs if seeds is None else (outputs, carried)
+    return _outputs(disparity, cues, measure), carried
 
 
 @functools.partial(jax.jit, static_argnames=("ndisp", "chunk"))
@@ -264,7 +306,7 @@ def ssw_carried(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
     Parameters
     ----------
     left, right, params, ndisp, valid_ndisp, chunk, valid_shape, seeds
-        As for :func:`ssw_disparity`; ``seeds`` required.
+        As for :func:`ssw_disparity_seeded`.
 
     Returns
     -------
@@ -272,6 +314,7 @@ def ssw_carried(left: jax.Array, right: jax.Array, params: Params, *, ndisp: int
         The states captured where ``seeds`` say (:mod:`sswjax.stages.paths`).
     """
     check_pair(left, right, ndisp)
+    check_unaligned(params)
     check_carried(params)
     scene = prepare_scene(left, right, params, valid_shape=valid_shape)
     _, optimised = optimised_volume(scene, params, ndisp=ndisp, valid_ndisp=valid_ndisp,

@@ -9,8 +9,10 @@ each window takes its neighbours' path states instead (:mod:`sswjax.stages.paths
 1. A sweep down the strips runs the cost, the aggregation and the optimiser of each window
    (:func:`sswjax.graph.ssw_carried`) with the forward states the window above left, and keeps
    the forward states it leaves for the window below.
-2. A sweep up runs the whole graph of each window with those forward states and with the
-   backward states the window below left in this sweep, and keeps its core.
+2. A sweep up runs the whole graph of each window, in its seeded form
+   (:func:`sswjax.graph.ssw_disparity_seeded`, :func:`~sswjax.graph.ssw_outputs_seeded`),
+   with those forward states and with the backward states the window below left in this
+   sweep, and keeps its core.
 
 A seed enters ``overlap // 2`` rows into the window (where the cost is the whole image's) and
 is the state the neighbour reached one row before that row, inside its own exact part. From
@@ -25,7 +27,7 @@ Array conventions: images float32 ``(H, W, C)`` NumPy arrays; a window's run ret
 
 from __future__ import annotations
 
-import inspect
+import functools
 from collections.abc import Callable
 
 import jax
@@ -33,32 +35,50 @@ import jax.numpy as jnp
 import numpy as np
 
 from sswjax.config import Params
-from sswjax.graph import carries_paths, ssw_carried
+from sswjax.graph import (carries_paths, ssw_carried, ssw_disparity, ssw_disparity_seeded,
+                          ssw_outputs, ssw_outputs_seeded)
 from sswjax.graph.volume import cost_bound
 from sswjax.runtime.executables import bounded
 from sswjax.runtime.tiles import Tiling, assemble, core_of, tile_windows, to_numpy
 from sswjax.stages.paths import Seeds, no_seeds
 
-__all__ = ["carried_strips", "in_carried_strips", "seed_entry", "takes_seeds"]
+__all__ = ["carried_strips", "in_carried_strips", "seed_entry", "seeded", "unwrapped"]
 
 _LINES = bounded(ssw_carried, static_argnames=("ndisp", "chunk"))
 
+_SEEDED = {ssw_disparity: bounded(ssw_disparity_seeded, static_argnames=("ndisp", "chunk"),
+                                  stored=True),
+           ssw_outputs: bounded(ssw_outputs_seeded, static_argnames=("ndisp", "chunk", "measure"),
+                                stored=True)}
+"""The graphs whose windows can take the seeds of carried paths, and their seeded forms."""
 
-def takes_seeds(graph: Callable) -> bool:
-    """Whether ``graph`` (a function of :mod:`sswjax.graph`, jitted, bounded or partially
-    applied) takes the ``seeds`` of carried paths."""
-    try:
-        return "seeds" in inspect.signature(graph).parameters
-    except (TypeError, ValueError):
-        return False
+
+def unwrapped(graph: Callable) -> tuple[Callable, dict]:
+    """The Python function under a graph as the API passes it (jitted, bounded, or a
+    ``functools.partial`` of keyword arguments), and those keyword arguments."""
+    keywords = {}
+    if isinstance(graph, functools.partial) and not graph.args:
+        keywords, graph = dict(graph.keywords), graph.func
+    return getattr(graph, "__wrapped__", graph), keywords
+
+
+def seeded(graph: Callable) -> Callable | None:
+    """The seeded form of ``graph`` (:func:`~sswjax.graph.ssw_disparity_seeded` for
+    :func:`~sswjax.graph.ssw_disparity`, and so on; the keyword arguments bound to ``graph``
+    bound to it), returning ``(maps, carried)``; None for a graph that has none."""
+    function, keywords = unwrapped(graph)
+    for plain, form in _SEEDED.items():
+        if function is unwrapped(plain)[0]:
+            return functools.partial(form, **keywords)
+    return None
 
 
 def carried_strips(graph: Callable, params: Params, height: int, width: int,
                    tiling: Tiling) -> bool:
     """Whether :func:`in_carried_strips` runs this call: row strips (no columns cut) of more
-    than one window, a method whose paths can be carried and a graph that takes seeds."""
+    than one window, a method whose paths can be carried and a graph with a seeded form."""
     return (tiling.cols == 0 and len(tile_windows(height, width, tiling)) > 1
-            and carries_paths(params) and takes_seeds(graph))
+            and carries_paths(params) and seeded(graph) is not None)
 
 
 def seed_entry(tiling: Tiling) -> int:
@@ -84,8 +104,7 @@ def in_carried_strips(bind: Callable[[Callable, object], Callable], graph: Calla
         arguments bound for that :class:`~sswjax.runtime.tiles.Window`
         (:func:`sswjax.runtime.execute.bind_graph`); called ``(left, right, seeds=)``.
     graph : callable
-        A graph that takes ``seeds`` (:func:`takes_seeds`) and then returns
-        ``(maps, carried)``.
+        A graph with a seeded form (:func:`seeded`), which runs the windows.
     left, right : float32 (H, W, C)
     tiling : Tiling
         Strips (``cols == 0``).
@@ -98,6 +117,7 @@ def in_carried_strips(bind: Callable[[Callable, object], Callable], graph: Calla
     -------
     numpy.ndarray (H, W) of the map's dtype, or the same NamedTuple of them
     """
+    graph = seeded(graph)
     height, width = left.shape[:2]
     windows = tile_windows(height, width, tiling)
     last, enter = len(windows) - 1, seed_entry(tiling)

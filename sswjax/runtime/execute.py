@@ -1,5 +1,6 @@
-"""A jitted graph run under an execution plan: padded to its bucket, in tiles or strips (the
-paths carried where they can be), aligned once first, or handed to an engine.
+"""A jitted graph run under an execution plan: padded to its bucket, aligned first when the
+parameters say so (one call of :func:`~sswjax.graph.align_right` on the whole pair), then in
+tiles or strips (the paths carried where they can be), here or by an engine.
 
 Array conventions: images float32 ``(H, W, C)`` NumPy arrays, C in {1, 3}, values in [0, 1];
 maps ``(H, W)`` NumPy arrays.
@@ -9,17 +10,23 @@ from __future__ import annotations
 
 import functools
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from sswjax.config import Params
-from sswjax.runtime.aligned import aligned_separately, execute_aligned
+from sswjax.graph import align_right
 from sswjax.runtime.buckets import bucket_shape, pad_to_bucket
 from sswjax.runtime.carried import carried_strips, in_carried_strips
+from sswjax.runtime.executables import bounded
 from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align
 from sswjax.runtime.tiles import Window, in_tiles
 
-__all__ = ["bind_graph", "execute", "graph_call"]
+__all__ = ["align", "bind_graph", "execute", "graph_call", "run_windows"]
+
+_ALIGN = bounded(align_right, static_argnames=("ndisp", "chunk"), stored=True)
+"""The alignment's graph, its executables bounded and its traces stored as the entry points'
+(:mod:`sswjax.api.match`)."""
 
 
 def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionPlan
@@ -64,13 +71,67 @@ def bind_graph(graph, params: Params, call: dict, *, window: Window | None = Non
     return functools.partial(graph, params=params, **call)
 
 
+def align(left: np.ndarray, right: np.ndarray, *, params: Params, call: dict) -> np.ndarray:
+    """The right image moved onto the left (:func:`~sswjax.graph.align_right`, one call on the
+    whole pair as :func:`graph_call` padded it, ``call`` its keyword arguments).
+
+    Parameters
+    ----------
+    left, right : float32 (H', W', C)
+    params : Params
+        With ``alignment`` set.
+    call : dict
+
+    Returns
+    -------
+    numpy.ndarray float32 (H', W', C)
+    """
+    moved, _ = bind_graph(_ALIGN, params, call)(jax.device_put(left), jax.device_put(right))
+    return np.asarray(moved)
+
+
+def run_windows(graph, left: np.ndarray, right: np.ndarray, *, params: Params, call: dict,
+                plan: ExecutionPlan):
+    """``graph`` on the pair as :func:`graph_call` padded it, in the tiles or strips of
+    ``plan`` (:func:`~sswjax.runtime.tiles.in_tiles`; the paths carried from strip to strip
+    where they can be, :mod:`sswjax.runtime.carried`), in this process. An engine's
+    ``execute`` has this signature.
+
+    Parameters
+    ----------
+    graph : callable
+        A jitted function of :mod:`sswjax.graph` returning the disparity float32 ``(H', W')``
+        or a NamedTuple of ``(H', W')`` maps.
+    left, right : float32 (H', W', C)
+    params : Params
+        Without ``alignment``.
+    call : dict
+        The keyword arguments of :func:`graph_call`.
+    plan : ExecutionPlan
+        Without an engine.
+
+    Returns
+    -------
+    numpy.ndarray (H', W'), or the same NamedTuple of them
+    """
+    tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
+    if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
+        return in_carried_strips(lambda function, window: bind_graph(function, params, call,
+                                                                     window=window),
+                                 graph, left, right, tiling, params=params, ndisp=call["ndisp"])
+    return in_tiles(lambda window, *pair: bind_graph(graph, params, call, window=window)(*pair),
+                    left, right, tiling)
+
+
 def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
             plan: ExecutionPlan):
-    """``graph(left, right, params=, ndisp=, chunk=[, valid_ndisp=])`` under ``plan``: padded
-    to its bucket, in tiles or strips (:func:`~sswjax.runtime.tiles.in_tiles`), cropped back;
-    or by the plan's engine. A pair that is aligned (``params.alignment``) and cut into
-    windows is aligned once on the whole pair first (:mod:`sswjax.runtime.aligned`); one too
-    small for a tile to be measured (``VerticalAlignment.measurable``) is matched without it.
+    """``graph(left, right, params=, ndisp=, chunk=[, valid_ndisp=, valid_shape=])`` under
+    ``plan``: padded to its bucket (:func:`graph_call`); with ``params.alignment``, the right
+    image moved first by one call of :func:`~sswjax.graph.align_right` on the whole padded
+    pair (left out on a pair too small for a tile to be measured,
+    ``VerticalAlignment.measurable``); then the method (``params`` without the alignment) in
+    tiles or strips, here (:func:`run_windows`) or by the plan's engine (its ``execute``, the
+    same signature); cropped back.
 
     Parameters
     ----------
@@ -86,34 +147,13 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     -------
     numpy.ndarray (H, W), or the same NamedTuple of them
     """
-    if params.alignment is not None and not params.alignment.measurable(left.shape[:2]):
-        # Too small for a tile to be measured: the offset is 0, and the pair is matched as
-        # without the alignment (in strips, as such a method carries its paths).
-        params = params.replace(alignment=None)
-    if aligned_separately(params, plan):
-        if plan.engine is None:
-            return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
-                                   plan=plan)
-        # One session of the engine for the first pass and the windows, and the windows
-        # fitted to its workers (or refused) before the first pass runs.
-        with plan.engine.session() as engine:
-            engine.fit(left, right, params=params.replace(alignment=None), ndisp=ndisp,
-                       plan=plan._replace(engine=None))
-            return execute_aligned(execute, graph, left, right, params=params, ndisp=ndisp,
-                                   plan=plan._replace(engine=engine))
-    if plan.engine is not None:
-        return plan.engine.execute(graph, left, right, params=params, ndisp=ndisp,
-                                   plan=plan._replace(engine=None))
     height, width = left.shape[:2]
     left, right, call = graph_call(left, right, ndisp, plan)
-    tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
-    if plan.carry_paths and carried_strips(graph, params, *left.shape[:2], tiling):
-        maps = in_carried_strips(lambda function, window: bind_graph(function, params, call,
-                                                                     window=window),
-                                 graph, left, right, tiling, params=params, ndisp=call["ndisp"])
-    else:
-        maps = in_tiles(lambda window: bind_graph(graph, params, call, window=window), left,
-                        right, tiling, bound=True)
+    if params.alignment is not None and params.alignment.measurable((height, width)):
+        right = align(left, right, params=params, call=call)
+    run = run_windows if plan.engine is None else plan.engine.execute
+    maps = run(graph, left, right, params=params.replace(alignment=None), call=call,
+               plan=plan._replace(engine=None))
     if isinstance(maps, tuple):
         return type(maps)(*(m[:height, :width] for m in maps))
     return maps[:height, :width]

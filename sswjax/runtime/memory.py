@@ -35,17 +35,13 @@ its table is in ``docs/notes/speed-and-memory.md``. The terms:
     ``h * W * D`` more with the optimiser when the volume is aggregated whole (no blocks).
 ``band``
     1 with a band: its graph's compilation; its ``h * w * K`` adds to ``volume`` and ``sgm``.
-``alignment``
-    1 with the vertical alignment on a pair large enough to measure it (``measurable``; below
-    that the graph leaves it out): compiling its first pass, a second copy of the method (the
-    peak with it less without: 0.31 GB at 480 x 640 x 192, 0.30 at 960 x 1280 x 256, 0.36 on
-    trainingQ's Vintage; its halved volumes do not add). Fitted with the other terms it is
-    0.21 GB: the refit of 2026-12-07 also lowered ``base`` by 0.06 GB and raised ``image``.
 
 ``h x w``, ``K`` and the bucketed shape come from the :class:`~sswjax.runtime.plan.ExecutionPlan`,
-the rest from the parameters. ``MARGIN`` and ``SLACK`` make the model conservative: on every
-measured size the estimate is above the measured peak (by at most :data:`STATED_RATIO`). The
-model describes the CPU backend and the ``ssw`` aggregator (other aggregators: as ``ssw``).
+the rest from the parameters. The vertical alignment's first pass, a call before the method's,
+is estimated like any other call; an aligned call's estimate is the larger of the two.
+``MARGIN`` and ``SLACK`` make the model conservative: on every measured size the estimate is
+above the measured peak (by at most :data:`STATED_RATIO`). The model describes the CPU backend
+and the ``ssw`` aggregator (other aggregators: as ``ssw``).
 """
 
 from __future__ import annotations
@@ -82,7 +78,6 @@ COEFFICIENTS: dict[str, float] = {
     "sgm8": 4.444,
     "sgm_whole": 30.08,
     "band": 1.491e8,
-    "alignment": 2.141e8,
 }
 """Bytes per unit of each term, fitted by ``benchmarks/memory.py fit`` (2026-12-07, the
 presets aligned)."""
@@ -103,8 +98,8 @@ sizes, ``docs/notes/speed-and-memory.md``), more where the compile floor decides
 
 def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None = None,
                  plan: ExecutionPlan | None = None, channels: int = 3) -> dict[str, float]:
-    """The model's terms for one call (see the module's docstring), in elements: a dict
-    str -> float, keys those of :data:`COEFFICIENTS`.
+    """The model's terms for one call of the method (the module's docstring), in elements: a
+    dict str -> float, keys those of :data:`COEFFICIENTS`.
 
     ``height, width, ndisp`` (int): the pair's size and disparity count, as given to
     :func:`sswjax.match`; ``params`` default the ``accurate`` preset; ``plan`` (default
@@ -143,8 +138,6 @@ def memory_terms(height: int, width: int, ndisp: int, *, params: Params | None =
         "sgm8": matched * ndisp if sgm and optimizer.paths == 8 else 0.0,
         "sgm_whole": matched * ndisp if sgm and whole else 0.0,
         "band": 0.0 if params.band is None else 1.0,
-        "alignment": float(params.alignment is not None
-                           and params.alignment.measurable((height, width))),
     }
 
 
@@ -164,7 +157,7 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params: Params |
     >>> from sswjax.config import preset
     >>> small = estimate_peak_bytes(497, 741, 70, params=preset("accurate"))
     >>> large = estimate_peak_bytes(1988, 2964, 280, params=preset("accurate"))
-    >>> large > 8 * small   # the constant terms (the process, the alignment's compile) aside
+    >>> large > 8 * small   # the constant term (the process) aside
     True
     """
     for name, value in (("height", height), ("width", width), ("ndisp", ndisp)):
@@ -173,10 +166,31 @@ def estimate_peak_bytes(height: int, width: int, ndisp: int, *, params: Params |
     if channels not in (1, 3):
         raise ValueError(f"channels must be 1 or 3, got {channels!r}")
     params = default_params() if params is None else params
+    plan = ExecutionPlan() if plan is None else plan
     terms = memory_terms(height, width, ndisp, params=params, plan=plan, channels=channels)
     fitted = sum(COEFFICIENTS[name] * value for name, value in terms.items())
     fitted = max(fitted, COMPILE_FLOOR["none" if params.optimizer is None else "sgm"])
-    return int(MARGIN * fitted + SLACK)
+    return max(int(MARGIN * fitted + SLACK),
+               _first_pass_bytes(height, width, ndisp, params=params, plan=plan, channels=channels))
+
+
+def _first_pass_bytes(height, width, ndisp, *, params, plan, channels) -> int:
+    """The estimate of the alignment's call (:func:`sswjax.graph.align_right`): its first pass
+    on the (bucketed) pair halved ``levels`` times, whole, and the whole pair it holds and
+    moves; 0 without it or on a pair too small to be measured (no first pass runs)."""
+    alignment = params.alignment
+    if alignment is None or not alignment.measurable((height, width)):
+        return 0
+    if plan.buckets is not None:
+        height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
+    whole = height * width * channels
+    for _ in range(alignment.levels):
+        height, width = (height + 1) // 2, (width + 1) // 2
+        ndisp = min(ndisp // 2 + 1, width - 1)
+    held = int(MARGIN * COEFFICIENTS["image"] * (whole - height * width * channels))
+    whole_plan = plan._replace(strip_rows=0, tile=0, buckets=None)
+    return held + estimate_peak_bytes(height, width, ndisp, params=alignment.first_pass(params),
+                                      plan=whole_plan, channels=channels)
 
 
 def _cgroup_free(root: Path) -> int | None:
@@ -230,7 +244,8 @@ def format_gb(value: float) -> str:
 def worker_peak_bytes(height: int, width: int, ndisp: int, *, params: Params | None = None,
                       plan: ExecutionPlan | None = None, channels: int = 3) -> int:
     """The estimate of a process that matches one tile of ``plan`` holding only its window
-    (a worker of :func:`sswjax.cluster.match_tiles`): the window matched as a whole pair.
+    (a worker of :func:`sswjax.cluster.match_tiles`): the window matched as a whole pair, by
+    the method (the alignment runs before, in the caller's process).
 
     Parameters and returns as :func:`estimate_peak_bytes`; without tiles, the whole pair's.
 
@@ -243,8 +258,8 @@ def worker_peak_bytes(height: int, width: int, ndisp: int, *, params: Params | N
     plan = ExecutionPlan() if plan is None else plan
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
-    align = pyramid_align(default_params() if params is None else params)
-    rows, cols = window_shape(height, width, plan_tiling(plan, ndisp, align=align))
+    params = (default_params() if params is None else params).replace(alignment=None)
+    rows, cols = window_shape(height, width, plan_tiling(plan, ndisp, align=pyramid_align(params)))
     return estimate_peak_bytes(rows, cols, ndisp, params=params, channels=channels,
                                plan=plan._replace(strip_rows=0, tile=0, buckets=None))
 
@@ -331,8 +346,9 @@ def _assess(shape, params, plan, channels, bound, *, choose: bool,
     fitting = _cheapest_tiling(shape, plan, params, limit, estimate)
     if choose and fitting is not None and not plan.strip_rows and not plan.tile:
         return estimated, fitting
+    first = _first_pass_bytes(*shape, params=params, plan=plan, channels=channels)
     raise _refusal(shape, estimated, limit, what, fitting,
-                   None if fitting is None else estimate(fitting))
+                   None if fitting is None else estimate(fitting), first if first > limit else 0)
 
 
 def _bound(limit, *, share: int = 1, local: bool = True):
@@ -349,9 +365,9 @@ def _bound(limit, *, share: int = 1, local: bool = True):
 
 def _cheapest_tiling(shape, plan, params, bound, estimate):
     """The first strips or tiles of :func:`~sswjax.runtime.tiles.tilings_by_work` under ``bound``
-    (bucketed; paths carried as plan and method allow, aligned or not); None: none fits."""
+    (bucketed; paths carried as plan and method allow); None: none fits."""
     height, width, ndisp = shape
-    carried = plan.carry_paths and carries_paths(params.replace(alignment=None))
+    carried = plan.carry_paths and carries_paths(params)
     if plan.buckets is not None:
         height, width, ndisp = bucket_shape(height, width, ndisp, plan.buckets)
     for tiling in tilings_by_work(height, width, lead=ndisp, overlap=plan.strip_overlap,
@@ -363,9 +379,10 @@ def _cheapest_tiling(shape, plan, params, bound, estimate):
     return None
 
 
-def _refusal(shape, estimate, bound, what, fitting, fitted) -> MemoryEstimateError:
-    """The one-line refusal, with what to change in the API's terms: ``fitting`` (the strips
-    or tiles that fit, estimated at ``fitted``), else a smaller ndisp or image."""
+def _refusal(shape, estimate, bound, what, fitting, fitted, first=0) -> MemoryEstimateError:
+    """The one-line refusal, with what to change in the API's terms: ``first`` (the estimate of
+    the alignment's first pass, when it alone does not fit), ``fitting`` (the strips or tiles
+    that fit, estimated at ``fitted``), else a smaller ndisp or image."""
     height, width, ndisp = shape
     if fitting is None:
         advice = "a smaller ndisp or image (even strips of 16 rows do not fit), or a larger limit"
@@ -374,6 +391,9 @@ def _refusal(shape, estimate, bound, what, fitting, fitted) -> MemoryEstimateErr
         advice = (f"match in {tiling_words(fitting).split(' of ')[0]} with "
                   f"plan=sswjax.ExecutionPlan({field}) (about {format_gb(fitted)}), or a "
                   "smaller ndisp or image")
+    if first:
+        advice += (f"; the vertical alignment's first pass (the pair halved) needs "
+                   f"{format_gb(first)} alone, params.replace(alignment=None) leaves it out")
     return MemoryEstimateError(
         f"a {width}x{height} pair with ndisp {ndisp} needs about {format_gb(estimate)}, more than "
         f"{what} ({format_gb(bound)}): {advice}", estimate=estimate, limit=int(bound),

@@ -233,9 +233,8 @@ def to_numpy(result):
     return np.asarray(result)
 
 
-def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling, *,
-             bound: bool = False):
-    """``run(left, right)`` on the windows of ``tiling``, one after the other, stitched.
+def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling):
+    """``run(window, left, right)`` on the windows of ``tiling``, one after the other, stitched.
 
     Memory follows the window instead of the image. A tiling of one window that covers the
     image runs the whole pair at once.
@@ -243,10 +242,9 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling,
     Parameters
     ----------
     run : callable
-        ``run(left, right) -> (h, w)`` map of float32 ``(h, w, C)`` JAX images, or a
-        NamedTuple of such maps of any dtypes: each is stitched. With ``bound``,
-        ``run(window)`` gives that function for the :class:`Window` (or None for the whole
-        image).
+        ``run(window, left, right) -> (h, w)`` map of float32 ``(h, w, C)`` JAX images (the
+        crops of the :class:`Window`, or the whole pair with ``window`` None), or a
+        NamedTuple of such maps of any dtypes: each is stitched.
     left, right : float32 (H, W, C)
     tiling : Tiling
 
@@ -257,21 +255,19 @@ def in_tiles(run: Callable, left: np.ndarray, right: np.ndarray, tiling: Tiling,
     Examples
     --------
     >>> image = np.arange(10.0)[:, None, None] * np.ones((10, 40, 1))
-    >>> seen = in_tiles(lambda l, r: l[..., 0], image, image, Tiling(4, 8, 1, 4))
+    >>> seen = in_tiles(lambda w, l, r: l[..., 0], image, image, Tiling(4, 8, 1, 4))
     >>> seen[:, 0].tolist() == list(range(10)) and seen.shape == (10, 40)
     True
     """
     height, width = left.shape[:2]
     windows = tile_windows(height, width, tiling)
     if len(windows) == 1:
-        whole = run(None) if bound else run
-        return to_numpy(whole(jax.device_put(left), jax.device_put(right)))
+        return to_numpy(run(None, jax.device_put(left), jax.device_put(right)))
 
     def pieces():
         for w in windows:
             rows, cols = slice(w.top, w.top + w.height), slice(w.left, w.left + w.width)
-            window_run = run(w) if bound else run
-            yield w, core_of(w, to_numpy(window_run(jax.device_put(left[rows, cols]),
-                                                    jax.device_put(right[rows, cols]))))
+            yield w, core_of(w, to_numpy(run(w, jax.device_put(left[rows, cols]),
+                                             jax.device_put(right[rows, cols]))))
 
     return assemble(height, width, pieces())

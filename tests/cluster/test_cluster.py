@@ -1,8 +1,8 @@
 """Dask as the engine, on a real cluster of this machine: a session's LocalCluster of two spawned
 single-threaded worker processes. Folders through the cluster equal the single process bit for
 bit; a worker killed mid-run loses nothing; a bad pair is named while the others are written;
-one pair's strips or tiles are tasks (an aligned pair's first pass too, in the same session of
-the engine, after its windows are fitted to the workers); without Dask the options say what to
+one pair's strips or tiles are tasks (an aligned pair's too: its right image is moved here
+first, then the method's windows are the tasks); without Dask the options say what to
 install; ``--workers`` beyond the cores is capped at them, and a cluster closes quietly.
 
 Every pair here is 40 x 64 with ndisp 8 and the cheap method, and the tiled pair's windows are
@@ -21,7 +21,6 @@ import threading
 import time
 
 import imageio.v3 as iio
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -33,7 +32,6 @@ from sswjax.cluster import DaskEngine, PairJob, match_folder, match_pairs, match
 from sswjax.cluster.cores import usable_cores
 from sswjax.cluster.workers import PINNED_FLAGS, connect, pin_workers, worker_environment
 from sswjax.data.io import read_image, read_pfm
-from sswjax.graph.alignment import halved_levels
 from sswjax.runtime.memory import MemoryEstimateError, worker_peak_bytes
 
 HEIGHT, WIDTH, NDISP, SHIFT = 40, 64, 8, 3
@@ -269,10 +267,8 @@ def _aligned_pair(texture):
 
 def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client, texture,
                                                                           cache):
-    # The alignment's first pass (on the whole halved pair, which fits where the windows do) is
-    # a task, the right image is moved here, then the windows are tasks: the maps of this
-    # process. (Strips of the windows the other tests compile; the tiles' first pass is chosen
-    # the same way, tests/test_alignment.py.)
+    # The right image is moved here (the alignment, one call on the whole pair), then the
+    # method's windows are tasks: the maps of this process.
     left, right, params, plan = _aligned_pair(texture)
     here = sswjax.match(left, right, NDISP, params=params, plan=plan)
     there = match_tiles(client, left, right, NDISP, params=params, plan=plan, cache=cache)
@@ -280,8 +276,8 @@ def test_an_aligned_pairs_windows_are_tasks_with_the_maps_of_this_process(client
 
 
 def test_an_aligned_pair_starts_its_engines_cluster_once(cluster, texture, cache):
-    # The command line's engine connects per session (it starts a cluster for its pair): the
-    # first pass and the windows share one, with the maps of this process.
+    # The command line's engine connects per call (it starts a cluster for its pair): the
+    # alignment runs here, the windows on one cluster, with the maps of this process.
     opened = []
 
     @contextlib.contextmanager
@@ -298,17 +294,9 @@ def test_an_aligned_pair_starts_its_engines_cluster_once(cluster, texture, cache
     assert there.tobytes() == here.tobytes()
 
 
-def test_windows_too_large_for_a_worker_are_refused_before_the_first_pass_runs(client, texture,
-                                                                               cache):
+def test_windows_too_large_for_a_worker_are_refused_before_any_task(client, texture, cache):
     left, right, params, plan = _aligned_pair(texture)
-    limit = worker_peak_bytes(*left.shape[:2], NDISP, params=params.replace(alignment=None),
-                              plan=plan) - 1
-    small, _, small_ndisp, _, _ = halved_levels(jnp.asarray(left / 255.0, jnp.float32),
-                                                jnp.asarray(right / 255.0, jnp.float32), NDISP,
-                                                None, params.alignment.levels)
-    first = worker_peak_bytes(*small.shape[:2], small_ndisp,
-                              params=params.alignment.first_pass(params))
-    assert first <= limit  # the first pass alone fits a worker: it would run, then the refusal
+    limit = worker_peak_bytes(*left.shape[:2], NDISP, params=params, plan=plan) - 1
     engine = DaskEngine(client, cache=cache, memory_limit=limit)
     with distributed.get_task_stream(client) as stream:
         with pytest.raises(MemoryEstimateError, match="more than the limit"):
