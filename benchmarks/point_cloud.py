@@ -3,7 +3,7 @@
 The cloud is read with `plyfile <https://github.com/dranjan/python-plyfile>`_ (an independent
 PLY reader, so the picture also checks the file), a random subsample is drawn in the camera
 frame of the left view with "up" pointing up (``-y``) and depth going away from the viewer,
-and the picture is written as PNG. The README's cloud is made by::
+and the picture is written as PNG. The cloud of docs/command-line.md is made by::
 
     M=../shared/data/MiddEval3/trainingQ/Motorcycle
     sswjax match $M/im0.png $M/im1.png --ndisp 70 --preset accurate --calib $M/calib.txt \\

@@ -1,7 +1,7 @@
-"""Regenerate the README's accuracy section: the paper's Table 1 with our methods, and a figure.
+"""Regenerate docs/paper-results.md: the paper's Table 1 with our methods, and a figure.
 
 Runs ``sswjax evaluate`` over MiddEval3 trainingQ with SSW, the paper's comparison aggregators
-(BF, GF, iGF, MF), a plain box, OpenCV SGBM and the SSW ablations, then draws a README-sized
+(BF, GF, iGF, MF), a plain box, OpenCV SGBM and the SSW ablations, then draws the page's
 figure (a few scenes, the main methods) from the disparities it wrote.
 
     python benchmarks/table1.py [--data DIR] [--params P.json] [-o benchmarks/results/table1]
@@ -47,7 +47,7 @@ def replacing(out: Path) -> list[str]:
 
 
 def figure_from_outputs(out: Path, data: Path | None) -> Path:
-    """Draw the README figure from the PFMs that ``sswjax evaluate`` wrote into ``out``."""
+    """Draw docs/paper-results.md's figure from the PFMs ``sswjax evaluate`` wrote into ``out``."""
     from sswjax.evaluation.figures import comparison_figure
 
     scenes = load_scenes(find_data_root(data=data), scenes=list(FIGURE_SCENES))
