@@ -141,11 +141,11 @@ def _pair(seed=3, shift=4, size=(40, 56)):
     return jnp.asarray(np.roll(right, shift, axis=1)), jnp.asarray(right)
 
 
-@pytest.mark.parametrize("optimizer", ["none", "sgm"])
+@pytest.mark.parametrize("optimizer", [None, "sgm"])
 def test_outputs_same_for_every_chunk_and_equal_to_ssw_disparity(optimizer):
     left, right = _pair()
-    params = Params().replace(n_segments=16, optimizer=optimizer)
-    params = params.replace(sgm_paths=4) if optimizer != "none" else params
+    params = Params().replace(**{"segments.n_segments": 16}, optimizer=optimizer)
+    params = params.replace(**{"optimizer.paths": 4}) if optimizer else params
     outputs = [graph.ssw_outputs(left, right, params, ndisp=12, chunk=k) for k in (0, 5)]
     disparity = graph.ssw_disparity(left, right, params, ndisp=12)
     for out in outputs:
@@ -169,7 +169,7 @@ def test_confidence_higher_on_texture_than_on_a_flat_pair():
     left, right = _pair(seed=8)
     noise = np.random.default_rng(9).random((2, *left.shape), dtype=np.float32)
     flat = jnp.asarray(0.5 + 0.004 * noise)
-    params = Params().replace(n_segments=16)
+    params = Params().replace(**{"segments.n_segments": 16})
     textured = np.asarray(graph.ssw_outputs(left, right, params, ndisp=12).confidence)
     faint = np.asarray(graph.ssw_outputs(flat[0], flat[1], params, ndisp=12).confidence)
     assert np.median(textured[:, 12:]) > 0.2 > np.median(faint[:, 12:])
