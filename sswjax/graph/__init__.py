@@ -10,6 +10,7 @@
                window of row strips whose paths are carried, ``ssw_carried`` (the states it
                leaves) and ``ssw_disparity_seeded``, ``ssw_outputs_seeded`` (its maps too)
 ``alignment``  ``align_right``, the vertical alignment: the jitted step before the method
+               (``ssw_aligned``: the step and the method in one program, for a pair whole)
 =============  ==================================================================================
 """
 

@@ -15,18 +15,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from sswjax.config import Params
-from sswjax.graph import align_right
+from sswjax.graph.alignment import METHODS, align_right, ssw_aligned
 from sswjax.runtime.buckets import bucket_shape, pad_to_bucket
-from sswjax.runtime.carried import carried_strips, in_carried_strips
+from sswjax.runtime.carried import carried_strips, in_carried_strips, unwrapped
 from sswjax.runtime.executables import bounded
 from sswjax.runtime.plan import ExecutionPlan, plan_tiling, pyramid_align
-from sswjax.runtime.tiles import Window, in_tiles
+from sswjax.runtime.tiles import Window, in_tiles, tile_count
 
-__all__ = ["align", "bind_graph", "execute", "graph_call", "run_windows"]
+__all__ = ["align", "aligned_whole", "bind_graph", "execute", "graph_call", "run_windows"]
 
 _ALIGN = bounded(align_right, static_argnames=("ndisp", "chunk"), stored=True)
-"""The alignment's graph, its executables bounded and its traces stored as the entry points'
-(:mod:`sswjax.api.match`)."""
+_ALIGNED = bounded(ssw_aligned, static_argnames=("method", "ndisp", "chunk", "options"),
+                   stored=True)
+"""The alignment's graphs, alone and followed by the method, their executables bounded and
+their traces stored as the entry points' (:mod:`sswjax.api.match`)."""
 
 
 def graph_call(left: np.ndarray, right: np.ndarray, ndisp: int, plan: ExecutionPlan
@@ -90,6 +92,19 @@ def align(left: np.ndarray, right: np.ndarray, *, params: Params, call: dict) ->
     return np.asarray(moved)
 
 
+def aligned_whole(graph):
+    """``graph`` (a method of :data:`sswjax.graph.alignment.METHODS`, jitted, bounded or with
+    keyword arguments bound) preceded by the alignment in one program
+    (:func:`~sswjax.graph.alignment.ssw_aligned`), called as ``graph`` is; None for another
+    graph."""
+    function, keywords = unwrapped(graph)
+    for name, method in METHODS.items():
+        if function is unwrapped(method)[0]:
+            return functools.partial(_ALIGNED, method=name,
+                                     options=tuple(sorted(keywords.items())))
+    return None
+
+
 def run_windows(graph, left: np.ndarray, right: np.ndarray, *, params: Params, call: dict,
                 plan: ExecutionPlan):
     """``graph`` on the pair as :func:`graph_call` padded it, in the tiles or strips of
@@ -131,7 +146,8 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     pair (left out on a pair too small for a tile to be measured,
     ``VerticalAlignment.measurable``); then the method (``params`` without the alignment) in
     tiles or strips, here (:func:`run_windows`) or by the plan's engine (its ``execute``, the
-    same signature); cropped back.
+    same signature); cropped back. A pair matched whole here runs the alignment and the method
+    in one program (:func:`aligned_whole`).
 
     Parameters
     ----------
@@ -149,11 +165,23 @@ def execute(graph, left: np.ndarray, right: np.ndarray, *, params, ndisp: int,
     """
     height, width = left.shape[:2]
     left, right, call = graph_call(left, right, ndisp, plan)
-    if params.alignment is not None and params.alignment.measurable((height, width)):
-        right = align(left, right, params=params, call=call)
     run = run_windows if plan.engine is None else plan.engine.execute
-    maps = run(graph, left, right, params=params.replace(alignment=None), call=call,
-               plan=plan._replace(engine=None))
+    if params.alignment is not None and params.alignment.measurable((height, width)):
+        tiling = plan_tiling(plan, call["ndisp"], align=pyramid_align(params))
+        whole = plan.engine is None and tile_count(*left.shape[:2], tiling) == 1
+        composed = aligned_whole(graph) if whole else None
+        if composed is not None:
+            maps = bind_graph(composed, params, call)(jax.device_put(left),
+                                                      jax.device_put(right))
+            return _cropped(maps, height, width)
+        right = align(left, right, params=params, call=call)
+    params = params.replace(alignment=None)
+    maps = run(graph, left, right, params=params, call=call, plan=plan._replace(engine=None))
+    return _cropped(maps, height, width)
+
+
+def _cropped(maps, height: int, width: int):
+    """``maps`` (a map or a NamedTuple of them) cropped to ``height x width``, as NumPy."""
     if isinstance(maps, tuple):
-        return type(maps)(*(m[:height, :width] for m in maps))
-    return maps[:height, :width]
+        return type(maps)(*(np.asarray(m)[:height, :width] for m in maps))
+    return np.asarray(maps)[:height, :width]
