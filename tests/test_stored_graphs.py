@@ -18,7 +18,8 @@ from jax.experimental.compilation_cache import compilation_cache
 import sswjax
 from sswjax.graph import ssw_disparity, ssw_outputs
 from sswjax.runtime import folder_bound
-from sswjax.runtime.stored import StoredGraph, graph_key, host_digest, source_digest
+from sswjax.runtime.graph_keys import graph_key, host_digest, source_digest
+from sswjax.runtime.stored import StoredGraph
 
 _STATIC = ("ndisp", "chunk", "measure")
 # The paper's method without segments and smoothing: the quickest graph to compile here.

@@ -11,8 +11,8 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   gives the executable;
 - the compiled executable itself (``.xlaexec``, :mod:`jax.experimental.serialize_executable`),
   written by the process in which XLA compiled it (not read it from XLA's cache:
-  :func:`compile_lowered`), keyed further by the host (:func:`host_digest`: the backend and
-  its version, the devices, ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA
+  :func:`compile_lowered`), keyed further by the host
+  (:func:`~sswjax.runtime.graph_keys.host_digest`: the backend and its version, the devices, ``XLA_FLAGS`` and the CPU's model and instruction sets, which XLA
   compiles for): a process that finds it loads it directly, and skips the lowering as well
   (0.1-0.2 s of a warm first call). ``SSWJAX_STORE_EXECUTABLES=0`` turns this off
   (:func:`executables_stored`). A test worker once crashed (a segmentation fault) in the first
@@ -21,14 +21,15 @@ executable up: about 0.8 s for ``accurate`` on a trainingQ pair, a quarter of a 
   whether its executable calls LAPACK (:func:`calls_lapack`), and the kernels are
   registered before it is loaded (:func:`register_lapack`). The executable is compressed
   (zlib: 1.8 MB to 0.33 MB for ``accurate`` on a trainingQ pair, 4 ms to expand). It is used
-  for calls on concrete arrays of the default device; a call under a transformation (a tracer among the arguments) or with
-  arrays on another device goes through the lowered program as above. The first run
+  for calls on concrete arrays of the default device; a call under a transformation (a tracer
+  among the arguments) or with arrays on another device goes through the lowered program as
+  above. The first run
   of a loaded executable waits for its result, so that one that fails to run is removed and
   the call goes through the lowered program. The file is a pickle that loads machine code:
   like XLA's own cache, the folder must be one only trusted users write to.
 
-A stored graph is keyed by everything that decides its trace (:func:`graph_key`): the sswjax
-source (a digest of every module of the package, so an edited checkout never reads a graph of
+A stored graph is keyed by everything that decides its trace
+(:func:`~sswjax.runtime.graph_keys.graph_key`): the sswjax source (a digest of every module of the package, so an edited checkout never reads a graph of
 other code), the versions of jax and jaxlib and the backend, the function, the pytree structure
 of its traced arguments (the static options and the choice of stages of ``Params`` are pytree
 structure), each leaf's shape, dtype and weak type, and the static arguments' values. Its
@@ -48,7 +49,6 @@ import functools
 import hashlib
 import os
 import pickle
-import platform
 import tempfile
 import zlib
 from collections.abc import Callable, Sequence
@@ -56,15 +56,14 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import jaxlib
 from jax.experimental import serialize_executable
 
 from sswjax.runtime.folder_bound import touch, trim
+from sswjax.runtime.graph_keys import graph_key, host_digest
 
 __all__ = ["StoredGraph", "calls_lapack", "compile_lowered", "executables_stored", "graph_folder",
-           "graph_key", "host_digest", "register_lapack", "source_digest"]
+           "register_lapack"]
 
-_SUFFIX = ".jaxexport"
 _EXECUTABLE_SUFFIX = ".xlaexec"
 
 
@@ -81,59 +80,10 @@ def graph_folder() -> Path | None:
     return Path(cache) / "graphs" if cache else None
 
 
-@functools.cache
-def source_digest() -> str:
-    """SHA-256 of the sswjax package's modules (relative path and bytes, in path order) and of
-    the versions of jax and jaxlib: what a stored graph was traced from."""
-    package = Path(__file__).resolve().parents[1]
-    digest = hashlib.sha256(f"jax {jax.__version__} jaxlib {jaxlib.__version__}".encode())
-    for path in sorted(package.rglob("*.py")):
-        digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()
-
-
-def _cpu_description() -> str:
-    """The CPU's model and instruction-set lines of ``/proc/cpuinfo`` (each distinct line
-    once), or :mod:`platform`'s names where that file is missing."""
-    try:
-        text = Path("/proc/cpuinfo").read_text()
-    except OSError:
-        return f"{platform.machine()} {platform.processor()}"
-    wanted = ("model name", "flags", "Features", "CPU implementer", "CPU part")
-    return "\n".join(dict.fromkeys(line for line in text.splitlines() if line.startswith(wanted)))
-
-
-@functools.cache
-def host_digest() -> str:
-    """SHA-256 of what an executable compiled in this process depends on beyond its program:
-    the default backend's platform and version, its first device's kind, the device count,
-    ``XLA_FLAGS`` and the CPU (:func:`_cpu_description`)."""
-    device = jax.devices()[0]
-    text = "\n".join([device.client.platform, device.client.platform_version,
-                      device.device_kind, str(jax.device_count()),
-                      os.environ.get("XLA_FLAGS", ""), _cpu_description()])
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
 def _abstract(leaf) -> jax.ShapeDtypeStruct:
     """A leaf's shape, dtype and weak type (a Python float is a weak float32 under jit)."""
     aval = jax.typeof(leaf)
     return jax.ShapeDtypeStruct(aval.shape, aval.dtype, weak_type=aval.weak_type)
-
-
-def graph_key(fn: Callable, treedef, specs: Sequence[jax.ShapeDtypeStruct],
-              static: dict) -> str:
-    """The file name of a stored graph: a digest of :func:`source_digest`, the backend, ``fn``'s
-    module and qualified name, the traced arguments' pytree structure ``treedef`` (its repr
-    holds the static options of every configuration), their ``specs`` and the ``static``
-    arguments' values."""
-    text = "\n".join([
-        source_digest(), jax.default_backend(), str(jax.config.jax_enable_x64),
-        f"{fn.__module__}.{fn.__qualname__}", repr(treedef),
-        ";".join(f"{spec.shape}{spec.dtype}{spec.weak_type}" for spec in specs),
-        repr(sorted(static.items())),
-    ])
-    return f"{fn.__name__}-{hashlib.sha256(text.encode()).hexdigest()[:40]}{_SUFFIX}"
 
 
 def _write_atomically(path: Path, data: bytes) -> None:
