@@ -20,6 +20,18 @@ SETS = {  # name -> (folder under the data root, scoring, reported (region, metr
 :data:`sswjax.evaluation.runner.SCORINGS`."""
 
 
+def whole_pair_graph(params):
+    """The jitted program that ``sswjax.match`` runs on a pair matched whole, and the static
+    keywords it takes beyond ``ndisp``: ``ssw_aligned`` (the alignment, then the method, in one
+    program) when ``params`` hold the alignment, ``ssw_disparity`` otherwise."""
+    from sswjax.graph import ssw_disparity
+    from sswjax.graph.alignment import ssw_aligned
+
+    if params.alignment is None:
+        return ssw_disparity, {}
+    return ssw_aligned, {"method": "ssw_disparity"}
+
+
 def parse_config(text: str):
     """A benchmark's ``--config``: ``NAME=BASE:JSON``, ``NAME=BASE`` or ``BASE`` -> (row name,
     :class:`sswjax.Params`), ``BASE`` a preset's name or a parameter file, ``JSON`` the changes

@@ -78,12 +78,13 @@ def swaps(commit: str, specs: list[str]) -> list[tuple]:
 
 def compiled(left, right, params, ndisp: int, chosen: list[tuple], version: str):
     """The graph compiled with the base's or the tree's functions."""
-    from sswjax.graph import ssw_disparity
+    from _report import whole_pair_graph
 
+    graph, extra = whole_pair_graph(params)
     for module, name, tree, base in chosen:
         setattr(module, name, base if version == "base" else tree)
     try:
-        return ssw_disparity.lower(left, right, params, ndisp=ndisp).compile()
+        return graph.lower(left, right, params, ndisp=ndisp, **extra).compile()
     finally:
         for module, name, tree, _ in chosen:
             setattr(module, name, tree)

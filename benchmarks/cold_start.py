@@ -51,6 +51,7 @@ import sswjax
 from sswjax.api.images import prepare_pair
 from sswjax.data.io import read_image
 from sswjax.graph import ssw_disparity
+from sswjax.graph.alignment import ssw_aligned
 from sswjax.runtime.compilation import enable_compilation_cache
 from sswjax.runtime.stored import StoredGraph, compile_lowered, graph_folder
 times = {"import": time.perf_counter() - start}
@@ -61,21 +62,25 @@ left, right = jax.device_put(left), jax.device_put(right)
 params, ndisp = sswjax.preset(sys.argv[5]), int(sys.argv[3])
 times["read"] = time.perf_counter() - t
 t = time.perf_counter()
-graph = StoredGraph(ssw_disparity.__wrapped__, (left, right, params), {"ndisp": ndisp},
-                    static=("ndisp", "chunk"), folder=graph_folder())
+# what sswjax.match runs on a pair whole: with the alignment, it and the method in one program
+jitted, extra = ((ssw_disparity, {}) if params.alignment is None
+                 else (ssw_aligned, {"method": "ssw_disparity"}))
+call = {"ndisp": ndisp, **extra}
+graph = StoredGraph(jitted.__wrapped__, (left, right, params), call,
+                    static=("method", "ndisp", "chunk", "options"), folder=graph_folder())
 times["trace or load"] = time.perf_counter() - t
 if graph.executable_loaded:  # its stored executable: nothing to lower or compile
     times["lower"] = times["compile"] = 0.0
-    compiled = graph.compiled(left, right, params, ndisp=ndisp)
+    compiled = graph.compiled(left, right, params, **call)
 else:
     t = time.perf_counter()
-    lowered = graph.lower(left, right, params, ndisp=ndisp)
+    lowered = graph.lower(left, right, params, **call)
     times["lower"] = time.perf_counter() - t
     t = time.perf_counter()
     compiled, fresh = compile_lowered(lowered)
     times["compile"] = time.perf_counter() - t
     graph.keep(compiled, fresh=fresh)
-leaves = graph.flat(left, right, params, ndisp=ndisp)
+leaves = graph.flat(left, right, params, **call)
 t = time.perf_counter()
 np.asarray(compiled(*leaves))
 times["first run"] = time.perf_counter() - t

@@ -60,9 +60,9 @@ import sswjax
 from sswjax.api.images import prepare_pair
 from sswjax.data.layouts import find_data_root, load_scenes
 from sswjax.evaluation.peers import sgbm_disparity
-from sswjax.graph import Stage, ssw_disparity
+from sswjax.graph import Stage
 
-from _report import write_report  # benchmarks/: on the path as a script
+from _report import whole_pair_graph, write_report  # benchmarks/: on the path as a script
 
 STAGES = tuple(stage.value for stage in Stage)
 COMMANDS = ("stages", "ops", "compile")
@@ -104,11 +104,12 @@ def operation_events(left, right, params, ndisp, names) -> list[dict]:
     """The trace events (``name``, ``ts``, ``dur`` in microseconds) of the operations of one
     warm call; ``names`` from :func:`compiled_tables` (other thunks, loops among them, are
     left out so that no time counts twice)."""
+    graph, extra = whole_pair_graph(params)
     for _ in range(2):
-        jax.block_until_ready(ssw_disparity(left, right, params, ndisp=ndisp))
+        jax.block_until_ready(graph(left, right, params, ndisp=ndisp, **extra))
     with tempfile.TemporaryDirectory() as directory:
         with jax.profiler.trace(directory):
-            jax.block_until_ready(ssw_disparity(left, right, params, ndisp=ndisp))
+            jax.block_until_ready(graph(left, right, params, ndisp=ndisp, **extra))
         (trace,) = Path(directory).rglob("*.trace.json.gz")
         events = json.loads(gzip.decompress(trace.read_bytes()))["traceEvents"]
     return [event for event in events if event.get("ph") == "X" and event.get("name") in names
@@ -116,9 +117,10 @@ def operation_events(left, right, params, ndisp, names) -> list[dict]:
 
 
 def stage_profile(left, right, params, ndisp) -> dict[str, float]:
-    """Seconds spent in each stage of one warm ``ssw_disparity`` call, from a profiler trace
+    """Seconds spent in each stage of one warm call of the whole pair's graph, from a profiler trace
     (operations outside every stage scope left out)."""
-    names, _ = compiled_tables(ssw_disparity.lower(left, right, params, ndisp=ndisp)
+    graph, extra = whole_pair_graph(params)
+    names, _ = compiled_tables(graph.lower(left, right, params, ndisp=ndisp, **extra)
                                .compile().as_text())
     seconds = dict.fromkeys(STAGES, 0.0)
     for event in operation_events(left, right, params, ndisp, names):
@@ -175,20 +177,20 @@ import json, sys, time
 import jax
 from sswjax.api.images import prepare_pair
 from sswjax.data.layouts import load_scenes
-from sswjax.graph import ssw_disparity
 sys.path.insert(0, sys.argv[4])
-from _report import parse_config
+from _report import parse_config, whole_pair_graph
 _, params = parse_config(sys.argv[3])
+graph, extra = whole_pair_graph(params)
 scene = load_scenes(sys.argv[1], scenes=[sys.argv[2]])[0]
 left, right = map(jax.device_put, prepare_pair(scene.left, scene.right))
-lowered = ssw_disparity.lower(left, right, params, ndisp=scene.ndisp)
+lowered = graph.lower(left, right, params, ndisp=scene.ndisp, **extra)
 start = time.perf_counter()
 lowered.compile()
 print("COMPILE_SECONDS", json.dumps(time.perf_counter() - start), flush=True)
 """
 
 _KERNEL = re.compile(r"Compiled LLVM module: (\S+) time: ([0-9.]+) (us|ms|s) ")
-_TOTAL = re.compile(r"Compiling \[jit_ssw_disparity\] for CPU using JIT time: ([0-9.]+) (us|ms|s) ")
+_TOTAL = re.compile(r"Compiling \[jit_ssw_(?:disparity|aligned)\] for CPU using JIT time: ([0-9.]+) (us|ms|s) ")
 _UNIT = {"us": 1e-6, "ms": 1e-3, "s": 1.0}
 
 
@@ -234,7 +236,8 @@ def bench_scene(scene, params, repeats, pandora=False):
     """One row of ``stages``: first call, warm and SGBM times, throughput, stage times."""
     left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
     ndisp = scene.ndisp
-    full = lambda: ssw_disparity(left, right, params, ndisp=ndisp)  # noqa: E731
+    graph, extra = whole_pair_graph(params)
+    full = lambda: graph(left, right, params, ndisp=ndisp, **extra)  # noqa: E731
     first = _timed(full)
     ssw_times, sgbm_times = [], []
     sgbm_disparity(scene.left, scene.right, ndisp)  # warm OpenCV's allocations too
@@ -311,7 +314,8 @@ def run_ops(args) -> int:
     (scene,) = load_scenes(_middeval3(args.data), scenes=[args.scene])
     left, right = map(jnp.asarray, prepare_pair(scene.left, scene.right))
     params = sswjax.preset(args.preset)
-    names, sizes = compiled_tables(ssw_disparity.lower(left, right, params, ndisp=scene.ndisp)
+    graph, extra = whole_pair_graph(params)
+    names, sizes = compiled_tables(graph.lower(left, right, params, ndisp=scene.ndisp, **extra)
                                    .compile().as_text())
     events = operation_events(left, right, params, scene.ndisp, names)
     rows = profile(events)
