@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from sswjax._checks import check_guide, check_map, check_positive
 from sswjax.stages.filters import channels_first, edge_pad
@@ -47,7 +48,7 @@ def _window_sum_1d(padded: jax.Array, radius: int, axis: int) -> jax.Array:
     """
     window = [1] * padded.ndim
     window[axis] = 2 * radius + 1
-    zero = jnp.array(0.0, padded.dtype)
+    zero = np.zeros((), padded.dtype)  # concrete: the sum JAX differentiates (a traced init is not)
     strides = (1,) * padded.ndim
     return jax.lax.reduce_window(padded, zero, jax.lax.add, tuple(window), strides, "VALID")
 

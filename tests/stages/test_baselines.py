@@ -270,3 +270,12 @@ def test_entry_checks():
         iterated_guided_filter(cost, guide, radius=1, iterations=0)
     with pytest.raises(ValueError, match="sigma_color"):
         bilateral_filter(cost, guide, radius=1, sigma_color=-1.0)
+
+
+def test_the_box_mean_differentiates_under_jit():
+    """The search differentiates the box aggregation inside jit: a traced initial value of the
+    window sum made JAX's reduction the generic one, which has no transpose ("Linearization
+    failed"). d/ds sum(box(s x)) = sum(box(x)), exactly for a constant x."""
+    x = jnp.ones((2, 7, 9), jnp.float32)
+    gradient = jax.jit(jax.grad(lambda s: box_filter(x * s, radius=1).sum()))(1.0)
+    assert float(gradient) == pytest.approx(float(box_filter(x, radius=1).sum()))
