@@ -36,7 +36,7 @@ from sswjax.api.batch import match_batch
 rng = np.random.default_rng(11)
 rights = rng.random((3, 28, 48, 3), dtype=np.float32)
 lefts = np.stack([np.roll(r, 2 + i, axis=1) for i, r in enumerate(rights)])
-out = match_batch(lefts, rights, 10, params=sswjax.Params().replace(**{"segments.n_segments": 16}))
+out = match_batch(lefts, rights, 10, params=sswjax.Params().replace(**{{"segments.n_segments": 16}}))
 np.save({path!r}, out)
 print(len(jax.devices()))
 """

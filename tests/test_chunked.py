@@ -63,7 +63,7 @@ def test_optimized_volume_folds_in_chunks_like_the_whole_volume(chunk):
     rng = np.random.default_rng(7)
     right = rng.random((30, 50, 3), dtype=np.float32)
     left = np.roll(right, 4, axis=1)
-    params = sswjax.preset("accurate").replace(**{"segments.n_segments": 20}, alignment=None)
+    params = sswjax.preset("accurate").replace(alignment=None)  # accurate has no superpixels
     whole = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=0)
     blocks = ssw_disparity(jnp.asarray(left), jnp.asarray(right), params, ndisp=11, chunk=chunk)
     np.testing.assert_allclose(np.asarray(blocks), np.asarray(whole), atol=1e-4, rtol=0)
